@@ -1,0 +1,26 @@
+"""Simulator backends behind one batched protocol (see :mod:`frbench.backends.base`)."""
+
+from __future__ import annotations
+
+from frbench.errors import unknown_name
+
+#: Backend name → "module:Class", imported on first use.
+BACKENDS = {
+    "mujoco": "frbench.backends.mujoco_backend:MujocoBackend",
+    "pybullet": "frbench.backends.pybullet_backend:PybulletBackend",
+}
+
+
+def backend_class(name: str):
+    """The backend class registered as ``name``."""
+    import importlib
+
+    if name not in BACKENDS:
+        raise unknown_name("backend", name, BACKENDS)
+    module, _, cls = BACKENDS[name].partition(":")
+    return getattr(importlib.import_module(module), cls)
+
+
+def make_backend(name: str, spec, num_envs: int, terrain=None):
+    """A backend ``name`` running ``num_envs`` simulations of ``spec`` on ``terrain`` (flat if None)."""
+    return backend_class(name)(spec, num_envs, terrain=terrain)

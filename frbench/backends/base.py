@@ -1,0 +1,214 @@
+"""The backend protocol: N simulations of one robot on one terrain, batched.
+
+Conventions (every backend converts at its edge; nothing above this layer
+knows which simulator runs):
+
+* SI units; world frame z up; gravity −9.81 m/s² along z.
+* Base pose is the pose of the URDF **root link frame** (not its inertial
+  frame): ``base_pos`` (N, 3) [m], ``base_quat`` (N, 4) **w, x, y, z**.
+* ``base_linvel`` (N, 3) [m/s] of the root frame origin in the world frame;
+  ``base_angvel`` (N, 3) [rad/s] in the **body** frame.
+* Joint arrays (N, n_joints) follow the robot spec's canonical joint order:
+  ``q`` [rad], ``qd`` [rad/s], ``tau`` [N·m] (the torque applied at the last
+  physics step).
+* Actuation, identical in every backend: at every physics step
+  ``tau = motor_strength · clip(kp (q* − q) − kd qd, ±torque_limit)``.
+  One control period is 0.02 s (50 Hz) = ``control_dt / physics_dt`` physics
+  steps; the physics step comes from the robot spec.
+* Contacts (`Contacts`) are read at the last physics step of a control
+  period and include every contact acting on a link (terrain and self).
+* Friction: the robot's links have coefficient 1 and the terrain the
+  per-simulation ``friction``; each backend combines them so the effective
+  coefficient of a robot–terrain contact equals ``friction`` (MuJoCo: geom
+  priority; Bullet: product with 1). No restitution, no joint damping, no
+  velocity damping of bodies.
+* A simulation that diverges (NaN, explosion, a simulator error) is flagged
+  in ``diverged`` and left alone; the others go on. ``reset`` clears the flag.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+from typing import Protocol
+
+import numpy as np
+
+from frbench.robots.spec import RobotSpec
+
+CONTROL_DT = 0.02
+#: A state with |value| above this (m, rad, m/s, rad/s) is treated as diverged.
+DIVERGENCE_LIMIT = 1e3
+#: A link counts as in contact when its net contact force exceeds this [N].
+CONTACT_FORCE_THRESHOLD = 1.0
+
+
+@dataclass
+class RobotState:
+    """Kinematic state of N robots; see the module docstring for frames and units."""
+
+    base_pos: np.ndarray
+    base_quat: np.ndarray
+    base_linvel: np.ndarray
+    base_angvel: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    tau: np.ndarray | None = None
+
+    @classmethod
+    def at_rest(cls, base_pos, base_quat, q) -> "RobotState":
+        """States with zero velocities: base_pos (N, 3) [m], base_quat (N, 4) wxyz, q (N, n_joints) [rad]."""
+        base_pos, q = np.atleast_2d(base_pos).astype(float), np.atleast_2d(q).astype(float)
+        n = len(base_pos)
+        return cls(
+            base_pos=base_pos,
+            base_quat=np.broadcast_to(np.atleast_2d(base_quat), (n, 4)).astype(float).copy(),
+            base_linvel=np.zeros((n, 3)),
+            base_angvel=np.zeros((n, 3)),
+            q=np.broadcast_to(q, (n, q.shape[-1])).copy(),
+            qd=np.zeros((n, q.shape[-1])),
+        )
+
+    @classmethod
+    def standing(cls, spec: RobotSpec, num_envs: int, clearance: float = 0.01) -> "RobotState":
+        """Upright at the default pose, feet ``clearance`` [m] above flat ground at z = 0."""
+        pos = np.tile([0.0, 0.0, spec.nominal_height + clearance], (num_envs, 1))
+        return cls.at_rest(pos, [1.0, 0.0, 0.0, 0.0], np.tile(spec.default_pose, (num_envs, 1)))
+
+    def take(self, ids) -> "RobotState":
+        """The states of simulations ``ids`` (copies)."""
+        return RobotState(**{f.name: (None if getattr(self, f.name) is None else getattr(self, f.name)[ids].copy()) for f in fields(self)})
+
+    def copy(self) -> "RobotState":
+        """A deep copy."""
+        return self.take(slice(None))
+
+
+@dataclass
+class Contacts:
+    """Contact readings of N robots at the last physics step.
+
+    Attributes:
+        link_force: (N, n_links, 3) net contact force on each simulated link,
+            world frame [N], links in the simulation URDF's order.
+        group_contact: (N, n_contact_groups) bool, a group's links touch anything
+            (force above `CONTACT_FORCE_THRESHOLD`).
+        foot_force: (N, n_feet) norm of the net contact force on each foot [N].
+        foot_contact: (N, n_feet) bool.
+        knee_force_xy: (N, n_knee_groups) norm of the horizontal part of the net
+            contact force on each knee group [N].
+        body_force_max: (N,) largest net contact force on any non-foot link [N].
+    """
+
+    link_force: np.ndarray
+    group_contact: np.ndarray
+    foot_force: np.ndarray
+    foot_contact: np.ndarray
+    knee_force_xy: np.ndarray
+    body_force_max: np.ndarray
+
+
+@dataclass
+class PhysicsParams:
+    """Per-simulation physical parameters (domain randomisation without recompiling).
+
+    Attributes:
+        kp: (N, n_joints) PD stiffness [N·m/rad].
+        kd: (N, n_joints) PD damping [N·m·s/rad].
+        motor_strength: (N, n_joints) torque scale [-].
+        friction: (N,) terrain friction coefficient [-].
+        payload: (N,) mass added to the root link at its CoM [kg].
+    """
+
+    kp: np.ndarray
+    kd: np.ndarray
+    motor_strength: np.ndarray
+    friction: np.ndarray
+    payload: np.ndarray = field(default=None)
+
+    @classmethod
+    def nominal(cls, spec: RobotSpec, num_envs: int, friction: float = 1.0) -> "PhysicsParams":
+        """The spec's gains, full strength, the given friction, no payload."""
+        ones = np.ones((num_envs, spec.n_joints))
+        return cls(
+            kp=ones * np.asarray(spec.kp),
+            kd=ones * np.asarray(spec.kd),
+            motor_strength=ones.copy(),
+            friction=np.full(num_envs, float(friction)),
+            payload=np.zeros(num_envs),
+        )
+
+
+class Backend(Protocol):
+    """What a task needs from a simulator. See the module docstring for conventions."""
+
+    name: str
+    spec: RobotSpec
+    num_envs: int
+    physics_dt: float
+    substeps: int
+    link_names: tuple[str, ...]
+    diverged: np.ndarray
+
+    def reset(self, ids: np.ndarray, state: RobotState) -> None:
+        """Place simulations ``ids`` in ``state`` (rows match ``ids``); clears their divergence flag."""
+
+    def step(self, joint_targets: np.ndarray) -> None:
+        """Advance every simulation one control period towards ``joint_targets`` (N, n_joints) [rad]."""
+
+    def state(self) -> RobotState:
+        """Current state of all simulations (fresh arrays)."""
+
+    def contacts(self) -> Contacts:
+        """Contact readings at the last physics step."""
+
+    def set_params(self, params: PhysicsParams) -> None:
+        """Set every simulation's physical parameters (arrays with N rows)."""
+
+    def mass_properties(self) -> tuple[np.ndarray, np.ndarray]:
+        """(total robot mass [kg] (N,), whole-body CoM [m] (N, 3)) as the simulator holds them."""
+
+    def close(self) -> None:
+        """Free the simulator."""
+
+
+def divergence_mask(state: RobotState) -> np.ndarray:
+    """(N,) bool: rows with a non-finite or exploding value."""
+    parts = [state.base_pos, state.base_quat, state.base_linvel, state.base_angvel, state.q, state.qd]
+    stacked = np.concatenate([p.reshape(p.shape[0], -1) for p in parts], axis=1)
+    return ~np.all(np.isfinite(stacked) & (np.abs(stacked) < DIVERGENCE_LIMIT), axis=1)
+
+
+def group_index(link_names: tuple[str, ...], groups) -> list[np.ndarray]:
+    """For each group, the indices of its links in ``link_names``."""
+    where = {name: i for i, name in enumerate(link_names)}
+    return [np.array([where[l] for l in group.links]) for group in groups]
+
+
+def summarize_contacts(spec: RobotSpec, link_names: tuple[str, ...], link_force: np.ndarray) -> Contacts:
+    """`Contacts` from per-link net forces (N, n_links, 3) — the same rule for every backend."""
+    norm = np.linalg.norm(link_force, axis=-1)
+    group_sum = lambda groups: np.stack(  # noqa: E731
+        [link_force[:, idx].sum(axis=1) for idx in group_index(link_names, groups)], axis=1
+    )
+    contact_groups = group_index(link_names, spec.contact_groups)
+    group_contact = np.stack([np.any(norm[:, idx] > CONTACT_FORCE_THRESHOLD, axis=1) for idx in contact_groups], axis=1)
+    feet = np.array([link_names.index(f) for f in spec.foot_links])
+    foot_force = norm[:, feet]
+    knee = group_sum(spec.knee_groups)
+    non_foot = np.setdiff1d(np.arange(len(link_names)), feet)
+    return Contacts(
+        link_force=link_force,
+        group_contact=group_contact,
+        foot_force=foot_force,
+        foot_contact=foot_force > CONTACT_FORCE_THRESHOLD,
+        knee_force_xy=np.linalg.norm(knee[..., :2], axis=-1),
+        body_force_max=norm[:, non_foot].max(axis=1) if non_foot.size else np.zeros(len(link_force)),
+    )
+
+
+def check_targets(joint_targets: np.ndarray, num_envs: int, n_joints: int) -> np.ndarray:
+    """``joint_targets`` as a float64 (N, n_joints) array, or a ValueError naming the shape."""
+    targets = np.asarray(joint_targets, dtype=np.float64)
+    if targets.shape != (num_envs, n_joints):
+        raise ValueError(f"joint targets of shape {targets.shape}, expected ({num_envs}, {n_joints})")
+    return targets

@@ -1,0 +1,162 @@
+"""MuJoCo backend: N simulations on ``mujoco.batch.Batch`` (a thread pool, one MjData each).
+
+See :mod:`frbench.backends.base` for the conventions. MuJoCo's free joint
+already reports what frbench wants: root link frame position, quaternion
+w-first, linear velocity in the world frame and angular velocity in the body
+frame, so the conversion here is only index bookkeeping.
+"""
+
+from __future__ import annotations
+
+import os
+
+import mujoco
+import numpy as np
+from mujoco import batch as mjbatch
+
+from frbench.backends.base import (
+    CONTROL_DT,
+    Contacts,
+    PhysicsParams,
+    RobotState,
+    check_targets,
+    divergence_mask,
+    summarize_contacts,
+)
+from frbench.backends.mujoco_model import build_model, joint_addresses
+from frbench.robots.sim_urdf import sim_robot_file
+from frbench.robots.spec import RobotSpec
+
+#: MuJoCo's warnings that mean a simulation blew up (it then resets that MjData itself).
+_INSTABILITY = [int(getattr(mujoco.mjtWarning, w)) for w in ("mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADQACC")]
+
+
+def default_threads() -> int:
+    """Threads for the batch: all cores (2 on the reference machine)."""
+    return max(1, os.cpu_count() or 1)
+
+
+class MujocoBackend:
+    """N MuJoCo simulations of ``spec`` on ``terrain``. See `frbench.backends.base.Backend`."""
+
+    name = "mujoco"
+
+    def __init__(self, spec: RobotSpec, num_envs: int, terrain=None, nthread: int | None = None):
+        from frbench.terrains import make_terrain
+
+        self.spec = spec
+        self.num_envs = int(num_envs)
+        self.terrain = terrain if terrain is not None else make_terrain("flat", 1, 0)
+        self.model = build_model(spec, self.terrain)
+        self.physics_dt = float(self.model.opt.timestep)
+        self.substeps = int(round(CONTROL_DT / self.physics_dt))
+        self.batch = mjbatch.Batch(self.model, self.num_envs, nthread or default_threads(), persistent=True)
+        self._qadr, self._dadr = joint_addresses(self.model, spec)
+        self.link_names = sim_robot_file(spec).links
+        self._link_body = np.array([self.model.body(name).id for name in self.link_names])
+        self._qpos = self.batch.bind("qpos")
+        self._qvel = self.batch.bind("qvel")
+        self._ctrl = self.batch.bind("ctrl")
+        self._actuator_force = self.batch.bind("actuator_force")
+        self._cfrc_ext = self.batch.bind("cfrc_ext")
+        self._terrain_geoms = np.array(
+            [g for g in range(self.model.ngeom) if self.model.geom_bodyid[g] == 0], dtype=int
+        )
+        self._root_body = self._link_body[0]
+        self._base_mass = float(self.model.body_mass[self._root_body])
+        self._gear = None
+        self.diverged = np.zeros(self.num_envs, dtype=bool)
+        self.params = PhysicsParams.nominal(spec, self.num_envs)
+
+    # ------------------------------------------------------------------ params
+    def set_params(self, params: PhysicsParams) -> None:
+        """Per-simulation gains, motor strength, terrain friction and payload."""
+        gain = self.batch.expand("actuator_gainprm")
+        bias = self.batch.expand("actuator_biasprm")
+        gear = self.batch.expand("actuator_gear")
+        friction = self.batch.expand("geom_friction")
+        mass = self.batch.expand("body_mass")
+        gain[:, :, 0] = params.kp
+        bias[:, :, 1] = -params.kp
+        bias[:, :, 2] = -params.kd
+        gear[:, :, 0] = params.motor_strength
+        friction[:, self._terrain_geoms, 0] = params.friction[:, None]
+        payload = np.zeros(self.num_envs) if params.payload is None else params.payload
+        mass[:, self._root_body] = self._base_mass + payload
+        self.batch.set_const()
+        self._gear = params.motor_strength
+        self.params = params
+
+    # ------------------------------------------------------------------ state
+    def reset(self, ids, state: RobotState) -> None:
+        """Place simulations ``ids`` in ``state`` (zero velocities if the state has none)."""
+        ids = np.asarray(ids, dtype=np.int32)
+        if ids.size == 0:
+            return
+        self.batch.reset(ids, stage=mujoco.mjtStage.mjSTAGE_NONE)
+        qpos = self._qpos[ids]
+        qvel = np.zeros((ids.size, self.model.nv))
+        qpos[:, 0:3] = state.base_pos
+        qpos[:, 3:7] = state.base_quat / np.linalg.norm(state.base_quat, axis=1, keepdims=True)
+        qpos[:, self._qadr] = state.q
+        qvel[:, 0:3] = state.base_linvel
+        qvel[:, 3:6] = state.base_angvel
+        qvel[:, self._dadr] = state.qd
+        self._qpos[ids] = qpos
+        self._qvel[ids] = qvel
+        self._ctrl[ids] = state.q
+        warnings_before = self.batch.warning[ids][:, _INSTABILITY, 0].sum(axis=1)
+        self.batch.forward(ids)
+        bad = self.batch.warning[ids][:, _INSTABILITY, 0].sum(axis=1) > warnings_before
+        self.diverged[ids] = bad | divergence_mask(state)
+
+    def step(self, joint_targets) -> None:
+        """One control period: ``substeps`` physics steps of PD tracking ``joint_targets``."""
+        targets = check_targets(joint_targets, self.num_envs, self.spec.n_joints)
+        alive = np.flatnonzero(~self.diverged)
+        if alive.size == 0:
+            return
+        self._ctrl[:] = np.where(self.diverged[:, None], self._ctrl, targets)
+        warnings_before = self.batch.warning[:, _INSTABILITY, 0].sum(axis=1)
+        ids = None if alive.size == self.num_envs else alive.astype(np.int32)
+        try:
+            self.batch.step(ids, nstep=self.substeps, stage=mujoco.mjtStage.mjSTAGE_VEL)
+        except mjbatch.SimulationError as exc:
+            self.diverged[np.asarray(exc.ids)] = True
+        self.diverged |= self.batch.warning[:, _INSTABILITY, 0].sum(axis=1) > warnings_before
+        self.diverged |= divergence_mask(self._raw_state())
+
+    def _raw_state(self) -> RobotState:
+        qpos, qvel = self._qpos, self._qvel
+        return RobotState(
+            base_pos=qpos[:, 0:3].copy(),
+            base_quat=qpos[:, 3:7].copy(),
+            base_linvel=qvel[:, 0:3].copy(),
+            base_angvel=qvel[:, 3:6].copy(),
+            q=qpos[:, self._qadr].copy(),
+            qd=qvel[:, self._dadr].copy(),
+        )
+
+    def state(self) -> RobotState:
+        """State of every simulation (root frame, canonical joints, applied torques)."""
+        state = self._raw_state()
+        gear = self._gear if self._gear is not None else 1.0
+        state.tau = self._actuator_force * gear
+        return state
+
+    def mass_properties(self) -> tuple[np.ndarray, np.ndarray]:
+        """(total robot mass [kg] (N,), whole-body CoM in the world [m] (N, 3)) as MuJoCo holds them."""
+        mass = self.batch.expanded("body_mass")
+        masses = (mass if mass is not None else np.tile(self.model.body_mass, (self.num_envs, 1)))[:, self._root_body :]
+        self.batch.forward()
+        com = self.batch.bind("subtree_com")[:, self._root_body].copy()
+        return masses.sum(axis=1), com
+
+    def contacts(self) -> Contacts:
+        """Net contact force per link from ``cfrc_ext`` (world frame), summarised by group."""
+        link_force = self._cfrc_ext[:, self._link_body, 3:6]
+        return summarize_contacts(self.spec, self.link_names, np.array(link_force))
+
+    def close(self) -> None:
+        """Release the batch."""
+        self.batch = None

@@ -1,0 +1,90 @@
+"""Compile a robot on a terrain into an ``MjModel`` that follows frbench's conventions.
+
+The robot comes from its simulation URDF (the same file PyBullet and
+Pinocchio load). What this adds, and why:
+
+* a free joint on the root (without it MuJoCo welds the root to the world);
+* ``fusestatic`` off and ``inertiafromgeom`` off, so every URDF link is one
+  body with exactly the file's inertia;
+* each body's collisions with all its ancestors excluded (MuJoCo only excludes
+  parent/child; Bullet's ``URDF_USE_SELF_COLLISION_EXCLUDE_ALL_PARENTS`` does this),
+  and the pairs of :func:`~frbench.robots.sim_urdf.self_collision_exclusions`;
+* one position actuator per joint in canonical order: force
+  ``kp (ctrl − q) − kd qd`` clipped to ± the torque limit, times ``gear``
+  (the motor strength) — the backends' identical PD, evaluated by MuJoCo at
+  every physics step;
+* an accelerometer on the root so that MuJoCo computes ``cfrc_ext`` (the net
+  contact force on every body) at every step;
+* an elliptic friction cone with impratio 100 (see ``build_spec``);
+* the terrain's geoms (priority 1, so contacts use the terrain's friction).
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from frbench.robots.sim_urdf import self_collision_exclusions, sim_robot_file
+from frbench.robots.spec import RobotSpec
+
+
+def build_spec(spec: RobotSpec, terrain, friction: float = 1.0) -> mujoco.MjSpec:
+    """An ``MjSpec`` of ``spec`` on ``terrain`` (see the module docstring)."""
+    from frbench.terrains.build import add_to_mjspec
+
+    sim = sim_robot_file(spec)
+    mj = mujoco.MjSpec.from_file(str(sim.path))
+    mj.compiler.fusestatic = False
+    mj.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
+    mj.option.timestep = spec.physics_dt
+    mj.option.integrator = mujoco.mjtIntegrator.mjINT_EULER
+    # elliptic cone with a high impratio: friction close to hard Coulomb, as Bullet's
+    # (with the defaults a standing Go2's feet creep outward and it sinks 25 %)
+    mj.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+    mj.option.impratio = 100.0
+    root = mj.worldbody.first_body()
+    root.add_freejoint()
+    site = root.add_site()
+    site.name = "frbench_imu"
+    sensor = mj.add_sensor()
+    sensor.type = mujoco.mjtSensor.mjSENS_ACCELEROMETER
+    sensor.objtype = mujoco.mjtObj.mjOBJ_SITE
+    sensor.objname = site.name
+    for link in sim.links:
+        for ancestor in sim.ancestors(link)[1:]:  # the parent is excluded by MuJoCo already
+            exclude = mj.add_exclude()
+            exclude.bodyname1, exclude.bodyname2 = ancestor, link
+    for link_a, link_b in self_collision_exclusions(spec):
+        exclude = mj.add_exclude()
+        exclude.bodyname1, exclude.bodyname2 = link_a, link_b
+    for geom in mj.geoms:
+        geom.friction = [1.0, 0.005, 0.0001]
+        geom.condim = 3
+    for name, kp, kd, limit in zip(spec.joint_names, spec.kp, spec.kd, spec.torque_limits):
+        joint = mj.joint(name)
+        joint.actfrclimited = mujoco.mjtLimited.mjLIMITED_FALSE
+        joint.damping = np.zeros(3)
+        joint.armature, joint.frictionloss = 0.0, 0.0
+        actuator = mj.add_actuator()
+        actuator.name = f"pd_{name}"
+        actuator.target = name
+        actuator.trntype = mujoco.mjtTrn.mjTRN_JOINT
+        actuator.set_to_position(kp=kp, kv=kd)
+        actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+        actuator.forcerange = [-limit, limit]
+        actuator.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+    add_to_mjspec(mj, terrain, friction)
+    light = mj.worldbody.add_light()
+    light.pos, light.dir = [0, 0, 6], [0, 0, -1]
+    return mj
+
+
+def build_model(spec: RobotSpec, terrain, friction: float = 1.0) -> mujoco.MjModel:
+    """Compiled model of ``spec`` on ``terrain``."""
+    return build_spec(spec, terrain, friction).compile()
+
+
+def joint_addresses(model: mujoco.MjModel, spec: RobotSpec) -> tuple[np.ndarray, np.ndarray]:
+    """(qpos addresses, dof addresses) of the canonical joints, each (n_joints,)."""
+    ids = [model.joint(name).id for name in spec.joint_names]
+    return model.jnt_qposadr[ids].copy(), model.jnt_dofadr[ids].copy()

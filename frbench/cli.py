@@ -1,0 +1,66 @@
+"""The ``frbench`` command line.
+
+Each sub-command lives in its own module under :mod:`frbench.commands` and
+exposes ``register(subparsers)``, which adds its parser and sets ``func``.
+Heavy imports (simulators, torch) happen inside the commands, so ``frbench
+--help`` is instant. An :class:`~frbench.errors.FrbenchError` is printed as one
+line on stderr and exits with status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from frbench import __version__
+from frbench.errors import FrbenchError
+
+#: Modules that register sub-commands, in the order ``--help`` lists them.
+COMMAND_MODULES = (
+    "frbench.commands.robots",
+    "frbench.commands.terrain",
+    "frbench.commands.policies",
+    "frbench.commands.evaluate",
+    "frbench.commands.render",
+    "frbench.commands.leaderboard",
+    "frbench.commands.train",
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The full argument parser (commands whose module is absent are skipped)."""
+    parser = argparse.ArgumentParser(prog="frbench", description="Legged-robot fall-recovery benchmark.")
+    parser.add_argument("--version", action="version", version=f"frbench {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMAND_MODULES:
+        try:
+            module = importlib.import_module(name)
+        except ModuleNotFoundError as exc:
+            if exc.name == name:
+                continue
+            raise
+        module.register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run one command; returns the process exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 0
+    try:
+        status = args.func(args)
+    except FrbenchError as exc:
+        print(f"frbench {args.command}: error: {exc}", file=sys.stderr)
+        return exc.exit_status
+    except KeyboardInterrupt:
+        print(f"frbench {args.command}: interrupted", file=sys.stderr)
+        return 130
+    return int(status or 0)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

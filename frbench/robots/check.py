@@ -1,0 +1,131 @@
+"""``frbench robot check``: the public conformance check of a robot.
+
+Loads the robot in Pinocchio, MuJoCo and PyBullet and compares total mass and
+whole-body CoM at the default pose and at random configurations, then holds
+it standing with the PD for 2 s in both simulators. A plugin author runs this
+on a new robot; the test suite runs it on every built-in one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from frbench.robots import ground_truth
+from frbench.robots.spec import RobotSpec
+
+MASS_TOLERANCE = 1e-6  # kg
+COM_TOLERANCE = 1e-4  # m
+HEIGHT_TOLERANCE = 0.10  # fraction of nominal height
+FORCE_TOLERANCE = 0.05  # fraction of m·g
+STAND_SECONDS = 2.0
+BACKEND_NAMES = ("mujoco", "pybullet")
+
+
+@dataclass
+class CheckReport:
+    """Result of :func:`check_robot`; ``asdict`` gives the ``--json`` output."""
+
+    robot: str
+    ok: bool = True
+    mass: dict[str, float] = field(default_factory=dict)
+    max_mass_error: float = 0.0
+    com: dict[str, list] = field(default_factory=dict)
+    max_com_error: float = 0.0
+    standing: dict[str, dict] = field(default_factory=dict)
+    problems: list[str] = field(default_factory=list)
+
+    def as_dict(self) -> dict:
+        """JSON-ready dict."""
+        return asdict(self)
+
+
+def random_configurations(spec: RobotSpec, rng: np.random.Generator, n: int):
+    """(base_pos (n, 3), base_quat (n, 4) wxyz, q (n, n_joints)): uniform joints, random orientation."""
+    quat = rng.normal(size=(n, 4))
+    quat /= np.linalg.norm(quat, axis=1, keepdims=True)
+    q = rng.uniform(spec.joint_lower, spec.joint_upper, size=(n, spec.n_joints))
+    pos = np.column_stack([rng.uniform(-1, 1, size=(n, 2)), rng.uniform(1.0, 2.0, size=n)])
+    return pos, quat, q
+
+
+def check_robot(spec: RobotSpec, n_random: int = 3, seed: int = 0, stand: bool = True) -> CheckReport:
+    """Compare mass and CoM across Pinocchio, MuJoCo and PyBullet; test standing."""
+    from frbench.backends import make_backend
+    from frbench.backends.base import RobotState
+
+    report = CheckReport(robot=spec.name)
+    rng = np.random.default_rng(seed)
+    pos, quat, q = random_configurations(spec, rng, n_random)
+    pos = np.vstack([[0.0, 0.0, 1.0], pos])
+    quat = np.vstack([[1.0, 0.0, 0.0, 0.0], quat])
+    q = np.vstack([spec.default_pose, q])
+    reference_mass = ground_truth.total_mass(spec)
+    reference_com = np.array([ground_truth.center_of_mass(spec, p, o, j) for p, o, j in zip(pos, quat, q)])
+    report.mass["pinocchio"] = reference_mass
+    report.com["pinocchio"] = reference_com.tolist()
+    states = RobotState.at_rest(pos, quat, q)
+    for name in BACKEND_NAMES:
+        backend = make_backend(name, spec, len(pos))
+        try:
+            backend.reset(np.arange(len(pos)), states)
+            masses, coms = backend.mass_properties()
+        finally:
+            backend.close()
+        report.mass[name] = float(masses[0])
+        report.com[name] = coms.tolist()
+        report.max_mass_error = max(report.max_mass_error, float(np.max(np.abs(masses - reference_mass))))
+        report.max_com_error = max(report.max_com_error, float(np.max(np.linalg.norm(coms - reference_com, axis=1))))
+    if report.max_mass_error > MASS_TOLERANCE:
+        report.problems.append(f"total mass differs by {report.max_mass_error:.3g} kg (tolerance {MASS_TOLERANCE:g})")
+    if report.max_com_error > COM_TOLERANCE:
+        report.problems.append(f"centre of mass differs by {report.max_com_error:.3g} m (tolerance {COM_TOLERANCE:g})")
+    if stand:
+        for name in BACKEND_NAMES:
+            result = stand_test(spec, name)
+            report.standing[name] = result
+            if not result["ok"]:
+                report.problems.append(f"{name}: does not stand ({result['reason']})")
+    report.ok = not report.problems
+    return report
+
+
+def stand_test(spec: RobotSpec, backend_name: str, seconds: float = STAND_SECONDS) -> dict:
+    """Hold the default pose with the PD for ``seconds`` on flat ground; report height and vertical force."""
+    from frbench.backends import make_backend
+    from frbench.backends.base import CONTROL_DT, RobotState
+
+    backend = make_backend(backend_name, spec, 1)
+    try:
+        backend.reset(np.arange(1), RobotState.standing(spec, 1))
+        targets = np.asarray(spec.default_pose)[None]
+        for _ in range(int(round(seconds / CONTROL_DT))):
+            backend.step(targets)
+        state, contacts = backend.state(), backend.contacts()
+        diverged = bool(backend.diverged[0])
+    finally:
+        backend.close()
+    weight = ground_truth.total_mass(spec) * 9.81
+    height = float(state.base_pos[0, 2])
+    force_z = float(contacts.link_force[0, :, 2].sum())
+    height_error = abs(height - spec.nominal_height) / spec.nominal_height
+    force_error = abs(force_z - weight) / weight
+    feet_only = not contacts.group_contact[0].any()
+    reasons = []
+    if diverged:
+        reasons.append("simulation diverged")
+    if height_error > HEIGHT_TOLERANCE:
+        reasons.append(f"base height {height:.3f} m is {100 * height_error:.1f} % from nominal {spec.nominal_height:.3f} m")
+    if force_error > FORCE_TOLERANCE:
+        reasons.append(f"vertical contact force {force_z:.1f} N is {100 * force_error:.1f} % from m·g {weight:.1f} N")
+    if not feet_only:
+        reasons.append("a body part other than the feet touches the ground")
+    return {
+        "ok": not reasons,
+        "reason": "; ".join(reasons),
+        "height": height,
+        "nominal_height": spec.nominal_height,
+        "force_z": force_z,
+        "weight": weight,
+    }

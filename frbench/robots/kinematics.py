@@ -1,0 +1,80 @@
+"""Forward kinematics over a `UrdfTree`, for standing heights and leg inference.
+
+Small and numpy-only: robots are trees of a few dozen links, and this runs
+once per robot when its spec is built (Pinocchio is the ground truth for
+masses and CoM; this module only places link frames).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from frbench.robots.urdf_tree import UrdfTree
+
+
+def _axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
+    axis = axis / np.linalg.norm(axis)
+    x, y, z = axis
+    c, s, t = np.cos(angle), np.sin(angle), 1 - np.cos(angle)
+    return np.array(
+        [
+            [t * x * x + c, t * x * y - s * z, t * x * z + s * y],
+            [t * x * y + s * z, t * y * y + c, t * y * z - s * x],
+            [t * x * z - s * y, t * y * z + s * x, t * z * z + c],
+        ]
+    )
+
+
+def link_poses(tree: UrdfTree, q: dict[str, float]) -> dict[str, np.ndarray]:
+    """World transforms (4, 4) of every link, root at the identity.
+
+    Args:
+        tree: the kinematic tree.
+        q: joint angle [rad] (or displacement [m]) per moving joint name;
+            missing joints are at 0.
+    """
+    poses = {tree.root: np.eye(4)}
+    pending = [tree.root]
+    while pending:
+        parent = pending.pop()
+        for joint in tree.child_joints(parent):
+            local = joint.origin.copy()
+            angle = q.get(joint.name, 0.0)
+            motion = np.eye(4)
+            if joint.type in ("revolute", "continuous"):
+                motion[:3, :3] = _axis_rotation(joint.axis, angle)
+            elif joint.type == "prismatic":
+                motion[:3, 3] = joint.axis / np.linalg.norm(joint.axis) * angle
+            poses[joint.child] = poses[parent] @ local @ motion
+            pending.append(joint.child)
+    return poses
+
+
+def lowest_point(tree: UrdfTree, poses: dict[str, np.ndarray], links) -> float:
+    """Lowest z [m] of the links' collision geometry (sphere bottoms, box corners, frame origins)."""
+    lowest = np.inf
+    for name in links:
+        pose = poses[name]
+        link = tree.links[name]
+        lowest = min(lowest, pose[2, 3])
+        for collision in link.collisions:
+            world = pose @ collision.origin
+            if collision.kind == "sphere":
+                lowest = min(lowest, world[2, 3] - collision.size[0])
+            elif collision.kind == "box":
+                half = np.asarray(collision.size) / 2
+                corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half
+                lowest = min(lowest, float(np.min((world[:3, :3] @ corners.T)[2] + world[2, 3])))
+            elif collision.kind == "cylinder":
+                radius, length = collision.size
+                axis = world[:3, 2]
+                # lowest point of a cylinder: end-cap centre minus radius along the horizontal-most direction
+                ends = world[2, 3] + np.array([-1, 1]) * axis[2] * length / 2
+                lowest = min(lowest, float(np.min(ends) - radius * np.sqrt(max(0.0, 1 - axis[2] ** 2))))
+    return float(lowest)
+
+
+def standing_height(tree: UrdfTree, joint_names, pose, foot_links) -> float:
+    """Height [m] of the root frame over flat ground with the feet's lowest point on it."""
+    poses = link_poses(tree, dict(zip(joint_names, pose)))
+    return -lowest_point(tree, poses, foot_links)

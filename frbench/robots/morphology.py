@@ -1,0 +1,691 @@
+"""Parametric primitive-geometry quadrupeds for FR-Net's morphology randomisation.
+
+FR-Net trains on robots whose trunk, hip, thigh and calf masses and sizes are
+drawn from the ranges of the paper's table "Domain randomization ranges"
+(:data:`MORPHOLOGY_RANGES`). This module turns one such draw
+(:class:`MorphologyParams`) into a URDF string and a :class:`RobotSpec`. It is
+pure Python string building plus a little numpy: no simulator is touched, so a
+URDF takes well under a millisecond and training can draw thousands of them.
+
+Kinematics and naming follow Unitree's Go2, which the rest of frbench relies on:
+
+* root link ``base``: the trunk, a box of length (x) × width (y) × height (z);
+* legs FL, FR, RL, RR (F = +x, R(ear) = −x; L = +y, R(ight) = −y), each with
+  revolute joints ``{leg}_hip_joint`` (axis x, at (±hip_x, ±hip_y, 0) on the
+  trunk), ``{leg}_thigh_joint`` (axis y, ±hip_length sideways from the hip) and
+  ``{leg}_calf_joint`` (axis y, at (0, 0, −thigh_length)), links ``{leg}_hip``
+  (a cylinder whose axis is y), ``{leg}_thigh`` and ``{leg}_calf`` (boxes hanging
+  along −z), and a fixed ``{leg}_foot_joint`` at (0, 0, −calf_length) to the
+  sphere ``{leg}_foot``;
+* signs as on Go2: a positive thigh angle swings the foot backward, a negative
+  calf angle folds the knee; hip angles, hip limits and the standing hip angle
+  are mirrored on the right legs (left gets ``+stand_hip``, right ``−stand_hip``),
+  so a positive ``stand_hip`` splays every foot outward.
+
+Cross sections: a leg segment's *width* is its lateral (y) size and its *height*
+its fore-aft (x) size, as in the Go1/Go2 collision boxes that the paper's numbers
+match. The paper's "hip length" is taken to be the hip→thigh lateral offset.
+
+Every link carries an ``<inertial>`` whose origin is the link's geometric centre
+and whose tensor is the solid box / cylinder / sphere of the link's own mass and
+dimensions, unless the params give a diagonal override (presets that publish
+inertias). Numbers are written with ``repr`` so they round-trip exactly: the
+file's total mass equals :func:`total_mass` to the last bit of each term.
+
+Presets
+-------
+:data:`SPOT_LIKE` and :data:`LITE3_LIKE` are built from the published numbers in
+``/work/shared/notes/robots.md``. Neither robot has an installable URDF, so
+these are approximations: boxes instead of Spot's bevelled trunk (it changes how
+it rolls), no foot compliance, inertias placed at the geometric centre instead of
+the published centre of mass. Presets are *not* clipped to the randomisation
+ranges (Spot's leg sections, both robots' hip offsets, Lite3's thigh length lie
+outside them).
+
+* Spot's total mass: the public model (MuJoCo Menagerie ``spot.xml``, BSD-3) sums
+  to 50.34 kg with a 32.86 kg trunk, while the manufacturer's spec sheet states
+  32.5 kg. ``SPOT_LIKE`` uses the spec sheet's 32.5 kg, because it describes the
+  real robot, and the public model's trunk also lumps payload hardware. The leg
+  links keep their published masses (hip 1.68, thigh 2.34, calf 0.35 kg, plus a
+  0.04 kg foot sphere) and the trunk gets the rest:
+  32.5 − 4·(1.68 + 2.34 + 0.35 + 0.04) = 14.86 kg.
+* Spot's knee torque limit depends on the knee angle (30.6–113.2 N·m); a URDF
+  effort limit is a constant, so the angle dependence is dropped and the upper
+  end, 113.2 N·m, is used.
+* Spot's leg inertias are Menagerie's principal moments rotated into the link
+  frame (they come out diagonal). Its trunk inertia is *not* used: Menagerie
+  gives an isotropic 0.13144 kg·m² placeholder for the 32.86 kg trunk, so the
+  trunk gets the solid-box inertia of 14.86 kg instead. Spot publishes no joint
+  velocity limits or hip radius; Go2's defaults are kept.
+* Lite3's inertias are the diagonal tensors of DeepRoboticsLab's ``Lite3.urdf``
+  (BSD-3; its left-side hip tensor, the right side lists the same moments with
+  x and z swapped). Its joint limits are converted to Go2's sign convention; its
+  calf, a Ø0.030 cylinder, becomes a 0.03 × 0.03 box.
+
+Units are SI throughout: metres, kilograms, radians, newton-metres, seconds.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from frbench.robots.spec import QUADRUPED_LEGS, RobotSpec, quadruped_groups
+
+__all__ = [
+    "FOOT_LINKS",
+    "HIP_X_MARGIN",
+    "JOINT_NAMES",
+    "LITE3_LIKE",
+    "MORPHOLOGY_RANGES",
+    "MorphologyParams",
+    "SPOT_LIKE",
+    "default_pose",
+    "hip_position",
+    "joint_limits",
+    "nominal_height",
+    "sample",
+    "spec_from_params",
+    "total_mass",
+    "urdf_string",
+    "validate",
+    "write_urdf",
+]
+
+#: FR-Net's morphology randomisation ranges (paper, Table "Domain randomization
+#: ranges"), field name → (low, high) in kg or m. The only place these numbers live.
+MORPHOLOGY_RANGES: dict[str, tuple[float, float]] = {
+    "trunk_mass": (4.0, 28.0),
+    "trunk_length": (0.37, 0.65),
+    "trunk_width": (0.09, 0.30),
+    "trunk_height": (0.11, 0.19),
+    "hip_mass": (0.30, 0.69),
+    "hip_length": (0.03, 0.05),
+    "thigh_mass": (0.6, 4.0),
+    "thigh_length": (0.21, 0.35),
+    "thigh_width": (0.02, 0.04),
+    "thigh_height": (0.03, 0.05),
+    "calf_mass": (0.10, 0.86),
+    "calf_length": (0.21, 0.35),
+    "calf_width": (0.016, 0.020),
+    "calf_height": (0.013, 0.019),
+}
+
+#: Default distance [m] between the trunk's front (rear) face and the hip joints.
+HIP_X_MARGIN = 0.02
+
+#: Actuated joints in frbench's canonical order (FL, FR, RL, RR × hip, thigh, calf).
+JOINT_NAMES: tuple[str, ...] = tuple(
+    f"{leg}_{part}_joint" for leg in QUADRUPED_LEGS for part in ("hip", "thigh", "calf")
+)
+#: Foot links, legs in canonical order.
+FOOT_LINKS: tuple[str, ...] = tuple(f"{leg}_foot" for leg in QUADRUPED_LEGS)
+
+Inertia3 = tuple[float, float, float]
+
+# Fields that must be > 0 (masses, sizes, limits of effort/speed, stiffness).
+_POSITIVE_FIELDS = (
+    *MORPHOLOGY_RANGES,
+    "hip_radius", "foot_radius", "foot_mass",
+    "hip_torque", "thigh_torque", "calf_torque",
+    "hip_velocity", "thigh_velocity", "calf_velocity",
+    "kp",
+)
+_OPTIONAL_POSITIVE_FIELDS = ("hip_x", "hip_y")
+_INERTIA_FIELDS = ("trunk_inertia", "hip_inertia", "thigh_inertia", "calf_inertia")
+# (lower field, upper field, standing-pose field) per joint family.
+_LIMIT_FIELDS = (
+    ("hip_lower", "hip_upper", "stand_hip"),
+    ("thigh_front_lower", "thigh_front_upper", "stand_thigh_front"),
+    ("thigh_rear_lower", "thigh_rear_upper", "stand_thigh_rear"),
+    ("calf_lower", "calf_upper", "stand_calf"),
+)
+
+
+@dataclass(frozen=True)
+class MorphologyParams:
+    """One quadruped morphology, SI units. Defaults are Go2-like.
+
+    The first 14 fields are FR-Net's randomised parameters (see
+    :data:`MORPHOLOGY_RANGES`); their defaults are Go2's measured values clipped
+    into those ranges, so ``MorphologyParams()`` is itself a point of the
+    randomisation space. The other fields are not randomised by the paper.
+    Build variants with :func:`dataclasses.replace`.
+    """
+
+    trunk_mass: float = 6.921
+    """Trunk (``base``) mass [kg]. Go2: 6.921."""
+    trunk_length: float = 0.3762
+    """Trunk box size along x [m]. Go2: 0.3762."""
+    trunk_width: float = 0.0935
+    """Trunk box size along y [m]. Go2: 0.0935."""
+    trunk_height: float = 0.114
+    """Trunk box size along z [m]. Go2: 0.114."""
+    hip_mass: float = 0.678
+    """Mass of one hip link [kg]. Go2: 0.678."""
+    hip_length: float = 0.05
+    """Lateral offset hip joint → thigh joint [m], also the hip cylinder's length.
+    Go2's offset is 0.0955, clipped to the range's upper end 0.05."""
+    thigh_mass: float = 1.152
+    """Mass of one thigh link [kg]. Go2: 1.152."""
+    thigh_length: float = 0.213
+    """Thigh joint → calf joint distance [m]. Go2: 0.213."""
+    thigh_width: float = 0.0245
+    """Thigh box size along y (lateral) [m]. Go2: 0.0245."""
+    thigh_height: float = 0.034
+    """Thigh box size along x (fore-aft) [m]. Go2: 0.034."""
+    calf_mass: float = 0.154
+    """Mass of one calf link, without the foot [kg]. Go2: 0.154."""
+    calf_length: float = 0.213
+    """Calf joint → foot centre distance [m]. Go2: 0.213."""
+    calf_width: float = 0.020
+    """Calf box size along y (lateral) [m]. Go2's Ø0.024 calf clipped to 0.020."""
+    calf_height: float = 0.019
+    """Calf box size along x (fore-aft) [m]. Go2's Ø0.024 calf clipped to 0.019."""
+
+    hip_radius: float = 0.046
+    """Radius of the hip cylinder (axis y) [m]. Go2: 0.046."""
+    foot_radius: float = 0.022
+    """Radius of the foot sphere [m]. Go2: 0.022."""
+    foot_mass: float = 0.04
+    """Mass of one foot sphere [kg]. Go2: 0.04."""
+    hip_x: float | None = None
+    """|x| of the hip joints on the trunk [m]; ``None``: trunk_length/2 − HIP_X_MARGIN."""
+    hip_y: float | None = None
+    """|y| of the hip joints on the trunk [m]; ``None``: trunk_width/2."""
+
+    hip_torque: float = 23.7
+    """Hip (abduction) effort limit [N·m]."""
+    thigh_torque: float = 23.7
+    """Thigh effort limit [N·m]."""
+    calf_torque: float = 45.43
+    """Calf (knee) effort limit [N·m]."""
+    hip_velocity: float = 30.1
+    """Hip velocity limit [rad/s]."""
+    thigh_velocity: float = 30.1
+    """Thigh velocity limit [rad/s]."""
+    calf_velocity: float = 15.7
+    """Calf velocity limit [rad/s]."""
+
+    hip_lower: float = -1.047
+    """Lower hip limit of the left legs [rad]; right legs use −hip_upper."""
+    hip_upper: float = 1.047
+    """Upper hip limit of the left legs [rad]; right legs use −hip_lower."""
+    thigh_front_lower: float = -1.571
+    """Lower thigh limit of the front legs [rad]."""
+    thigh_front_upper: float = 3.491
+    """Upper thigh limit of the front legs [rad]."""
+    thigh_rear_lower: float = -0.524
+    """Lower thigh limit of the rear legs [rad]."""
+    thigh_rear_upper: float = 4.538
+    """Upper thigh limit of the rear legs [rad]."""
+    calf_lower: float = -2.723
+    """Lower calf limit [rad] (most folded knee)."""
+    calf_upper: float = -0.838
+    """Upper calf limit [rad] (most stretched knee)."""
+
+    stand_hip: float = 0.1
+    """Standing hip angle of the left legs [rad]; right legs use −stand_hip."""
+    stand_thigh_front: float = 0.8
+    """Standing thigh angle of the front legs [rad]."""
+    stand_thigh_rear: float = 1.0
+    """Standing thigh angle of the rear legs [rad]."""
+    stand_calf: float = -1.5
+    """Standing calf angle [rad]."""
+    kp: float = 20.0
+    """PD stiffness of every joint [N·m/rad]."""
+    kd: float = 0.5
+    """PD damping of every joint [N·m·s/rad] (≥ 0)."""
+
+    trunk_inertia: Inertia3 | None = None
+    """Diagonal (Ixx, Iyy, Izz) of the trunk about its centre [kg·m²]; ``None``: solid box."""
+    hip_inertia: Inertia3 | None = None
+    """Diagonal inertia of one hip link [kg·m²]; ``None``: solid cylinder."""
+    thigh_inertia: Inertia3 | None = None
+    """Diagonal inertia of one thigh link [kg·m²]; ``None``: solid box."""
+    calf_inertia: Inertia3 | None = None
+    """Diagonal inertia of one calf link [kg·m²]; ``None``: solid box."""
+
+
+# --------------------------------------------------------------------------- validation
+
+
+def _check_positive(name: str, value: object) -> None:
+    """Raise ``ValueError`` naming ``name`` unless ``value`` is a finite number > 0."""
+    if not _is_finite_number(value) or value <= 0:
+        raise ValueError(f"MorphologyParams.{name} must be positive and finite, got {value!r}")
+
+
+def _is_finite_number(value: object) -> bool:
+    """True for finite real numbers (bools excluded)."""
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _check_inertia(name: str, value: object) -> None:
+    """Raise ``ValueError`` unless ``value`` is 3 positive moments obeying the triangle inequality."""
+    try:
+        moments = tuple(value)  # type: ignore[arg-type]
+    except TypeError:
+        raise ValueError(f"MorphologyParams.{name} must be (Ixx, Iyy, Izz), got {value!r}") from None
+    if len(moments) != 3 or not all(_is_finite_number(m) and m > 0 for m in moments):
+        raise ValueError(f"MorphologyParams.{name} must be 3 positive finite moments, got {value!r}")
+    a, b, c = moments
+    if a + b < c or b + c < a or a + c < b:
+        raise ValueError(f"MorphologyParams.{name} {value!r} violates the triangle inequality")
+
+
+def validate(params: MorphologyParams) -> None:
+    """Check ``params``; raise ``ValueError`` naming the first offending field.
+
+    Masses, sizes, effort and velocity limits, ``kp`` and given hip positions
+    must be positive and finite; ``kd`` finite and ≥ 0; angles finite with
+    lower < upper and the standing pose inside the limits; inertia overrides
+    three positive moments obeying the triangle inequality.
+    """
+    for name in _POSITIVE_FIELDS:
+        _check_positive(name, getattr(params, name))
+    for name in _OPTIONAL_POSITIVE_FIELDS:
+        if getattr(params, name) is not None:
+            _check_positive(name, getattr(params, name))
+    if not _is_finite_number(params.kd) or params.kd < 0:
+        raise ValueError(f"MorphologyParams.kd must be finite and >= 0, got {params.kd!r}")
+    for lower, upper, stand in _LIMIT_FIELDS:
+        for name in (lower, upper, stand):
+            if not _is_finite_number(getattr(params, name)):
+                raise ValueError(f"MorphologyParams.{name} must be finite, got {getattr(params, name)!r}")
+        lo, hi, q = getattr(params, lower), getattr(params, upper), getattr(params, stand)
+        if not lo < hi:
+            raise ValueError(f"MorphologyParams.{lower} ({lo}) must be below {upper} ({hi})")
+        if not lo <= q <= hi:
+            raise ValueError(f"MorphologyParams.{stand} ({q}) lies outside [{lower}, {upper}] = [{lo}, {hi}]")
+    for name in _INERTIA_FIELDS:
+        if getattr(params, name) is not None:
+            _check_inertia(name, getattr(params, name))
+
+
+# --------------------------------------------------------------------------- sampling
+
+
+def sample(rng: np.random.Generator, base: MorphologyParams | None = None) -> MorphologyParams:
+    """Draw a morphology uniformly from :data:`MORPHOLOGY_RANGES`.
+
+    Args:
+        rng: the random generator (explicit; the same seed gives the same params).
+        base: supplies every non-randomised field; default ``MorphologyParams()``.
+
+    Returns:
+        ``base`` with the 14 randomised fields drawn uniformly in [low, high).
+        Its hip positions revert to ``None`` (derived from the new trunk) and its
+        inertia overrides to ``None`` (they belonged to the old dimensions).
+    """
+    if not isinstance(rng, np.random.Generator):
+        raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
+    base = MorphologyParams() if base is None else base
+    validate(base)
+    low, high = np.array(list(MORPHOLOGY_RANGES.values()), dtype=float).T
+    draws = rng.uniform(low, high)
+    values = {name: float(v) for name, v in zip(MORPHOLOGY_RANGES, draws)}
+    reset = dict.fromkeys(_OPTIONAL_POSITIVE_FIELDS + _INERTIA_FIELDS)
+    return dataclasses.replace(base, **values, **reset)
+
+
+# --------------------------------------------------------------------------- derived quantities
+
+
+def total_mass(params: MorphologyParams) -> float:
+    """Robot mass [kg]: trunk + 4·(hip + thigh + calf + foot)."""
+    return params.trunk_mass + 4 * (params.hip_mass + params.thigh_mass + params.calf_mass + params.foot_mass)
+
+
+def hip_position(params: MorphologyParams) -> tuple[float, float]:
+    """(|x|, |y|) of the hip joints on the trunk [m], defaults resolved."""
+    x = params.trunk_length / 2 - HIP_X_MARGIN if params.hip_x is None else params.hip_x
+    y = params.trunk_width / 2 if params.hip_y is None else params.hip_y
+    return float(x), float(y)
+
+
+def _leg_signs(leg: str) -> tuple[float, float]:
+    """(x sign, y sign) of a leg prefix: F → +x, R(ear) → −x, L → +y, R(ight) → −y."""
+    return (1.0 if leg[0] == "F" else -1.0), (1.0 if leg[1] == "L" else -1.0)
+
+
+def default_pose(params: MorphologyParams) -> tuple[float, ...]:
+    """Standing joint angles [rad], shape (12,), canonical order (hip mirrored on the right)."""
+    pose: list[float] = []
+    for leg in QUADRUPED_LEGS:
+        sx, sy = _leg_signs(leg)
+        thigh = params.stand_thigh_front if sx > 0 else params.stand_thigh_rear
+        pose += [sy * params.stand_hip + 0.0, thigh, params.stand_calf]  # + 0.0: no -0.0
+    return tuple(float(q) for q in pose)
+
+
+def joint_limits(params: MorphologyParams) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """(lower, upper) position limits [rad], each shape (12,), canonical order.
+
+    Right legs mirror the hip range: [−hip_upper, −hip_lower].
+    """
+    lower: list[float] = []
+    upper: list[float] = []
+    for leg in QUADRUPED_LEGS:
+        sx, sy = _leg_signs(leg)
+        hip = (params.hip_lower, params.hip_upper) if sy > 0 else (-params.hip_upper, -params.hip_lower)
+        if sx > 0:
+            thigh = (params.thigh_front_lower, params.thigh_front_upper)
+        else:
+            thigh = (params.thigh_rear_lower, params.thigh_rear_upper)
+        for lo, hi in (hip, thigh, (params.calf_lower, params.calf_upper)):
+            lower.append(float(lo))
+            upper.append(float(hi))
+    return tuple(lower), tuple(upper)
+
+
+def nominal_height(params: MorphologyParams) -> float:
+    """Height [m] of the ``base`` frame over flat ground in the standing pose.
+
+    Forward kinematics of each leg: with thigh angle θ₁, calf angle θ₂ and hip
+    angle φ (splaying outward), the foot centre lies
+    ``(l₁ cos θ₁ + l₂ cos(θ₁+θ₂)) cos φ − hip_length sin φ`` below the hip axis,
+    and the ground one ``foot_radius`` further. The lower of the front and rear
+    legs is returned (the trunk rests on its shorter legs).
+    """
+    def leg_height(thigh: float) -> float:
+        planar = params.thigh_length * math.cos(thigh) + params.calf_length * math.cos(thigh + params.stand_calf)
+        return planar * math.cos(params.stand_hip) - params.hip_length * math.sin(params.stand_hip) + params.foot_radius
+
+    height = min(leg_height(params.stand_thigh_front), leg_height(params.stand_thigh_rear))
+    if height <= 0:
+        raise ValueError(f"standing pose puts the base {height:.3f} m above the ground; check stand_* fields")
+    return height
+
+
+# --------------------------------------------------------------------------- inertia
+
+
+def box_inertia(mass: float, sx: float, sy: float, sz: float) -> Inertia3:
+    """Diagonal inertia [kg·m²] of a solid box of ``mass`` [kg] and sizes [m] about its centre."""
+    return (mass * (sy * sy + sz * sz) / 12, mass * (sx * sx + sz * sz) / 12, mass * (sx * sx + sy * sy) / 12)
+
+
+def cylinder_y_inertia(mass: float, radius: float, length: float) -> Inertia3:
+    """Diagonal inertia [kg·m²] of a solid cylinder with its axis along y, about its centre."""
+    across = mass * (3 * radius * radius + length * length) / 12
+    return (across, mass * radius * radius / 2, across)
+
+
+def sphere_inertia(mass: float, radius: float) -> Inertia3:
+    """Diagonal inertia [kg·m²] of a solid sphere about its centre."""
+    i = 0.4 * mass * radius * radius
+    return (i, i, i)
+
+
+# --------------------------------------------------------------------------- URDF
+
+
+def _num(x: float) -> str:
+    """Exact, round-tripping decimal text of ``x``."""
+    return repr(float(x))
+
+
+def _vec(*xs: float) -> str:
+    """Space-separated exact decimals."""
+    return " ".join(repr(float(x)) for x in xs)
+
+
+def _link(name: str, mass: float, centre: str, inertia: Inertia3, collision: str) -> str:
+    """A ``<link>`` with one inertial at ``centre`` (an ``"x y z"`` string) and one collision."""
+    ixx, iyy, izz = inertia
+    return (
+        f'  <link name="{name}">\n'
+        f'    <inertial>\n'
+        f'      <origin xyz="{centre}" rpy="0 0 0"/>\n'
+        f'      <mass value="{_num(mass)}"/>\n'
+        f'      <inertia ixx="{_num(ixx)}" ixy="0" ixz="0" iyy="{_num(iyy)}" iyz="0" izz="{_num(izz)}"/>\n'
+        f'    </inertial>\n'
+        f'    <collision>\n'
+        f'{collision}'
+        f'    </collision>\n'
+        f'  </link>\n'
+    )
+
+
+def _geometry(origin_xyz: str, shape: str, rpy: str = "0 0 0") -> str:
+    """A collision's ``<origin>`` and ``<geometry>`` lines."""
+    return f'      <origin xyz="{origin_xyz}" rpy="{rpy}"/>\n      <geometry><{shape}/></geometry>\n'
+
+
+def _joint(name: str, parent: str, child: str, xyz: str, axis: str | None = None,
+           limit: tuple[float, float, float, float] | None = None) -> str:
+    """A revolute joint (``axis`` and ``limit`` = (lower, upper, effort, velocity) given) or a fixed one."""
+    kind = "fixed" if axis is None else "revolute"
+    text = (
+        f'  <joint name="{name}" type="{kind}">\n'
+        f'    <origin xyz="{xyz}" rpy="0 0 0"/>\n'
+        f'    <parent link="{parent}"/>\n'
+        f'    <child link="{child}"/>\n'
+    )
+    if axis is not None and limit is not None:
+        lo, hi, effort, velocity = limit
+        text += (
+            f'    <axis xyz="{axis}"/>\n'
+            f'    <limit lower="{_num(lo)}" upper="{_num(hi)}" effort="{_num(effort)}" velocity="{_num(velocity)}"/>\n'
+        )
+    return text + "  </joint>\n"
+
+
+def _trunk(p: MorphologyParams) -> str:
+    """The ``base`` link: a box centred on the base frame."""
+    size = _vec(p.trunk_length, p.trunk_width, p.trunk_height)
+    inertia = p.trunk_inertia or box_inertia(p.trunk_mass, p.trunk_length, p.trunk_width, p.trunk_height)
+    return _link("base", p.trunk_mass, "0 0 0", inertia, _geometry("0 0 0", f'box size="{size}"'))
+
+
+def _leg(p: MorphologyParams, leg: str, hip_xy: tuple[float, float],
+         lower: tuple[float, ...], upper: tuple[float, ...]) -> str:
+    """Links and joints of one leg; ``lower``/``upper`` are this leg's 3 joint limits."""
+    sx, sy = _leg_signs(leg)
+    hip, thigh, calf, foot = (f"{leg}_{part}" for part in ("hip", "thigh", "calf", "foot"))
+    hip_centre = _vec(0.0, sy * p.hip_length / 2, 0.0)
+    thigh_centre = _vec(0.0, 0.0, -p.thigh_length / 2)
+    calf_centre = _vec(0.0, 0.0, -p.calf_length / 2)
+    hip_inertia = p.hip_inertia or cylinder_y_inertia(p.hip_mass, p.hip_radius, p.hip_length)
+    thigh_inertia = p.thigh_inertia or box_inertia(p.thigh_mass, p.thigh_height, p.thigh_width, p.thigh_length)
+    calf_inertia = p.calf_inertia or box_inertia(p.calf_mass, p.calf_height, p.calf_width, p.calf_length)
+    thigh_box = f'box size="{_vec(p.thigh_height, p.thigh_width, p.thigh_length)}"'
+    calf_box = f'box size="{_vec(p.calf_height, p.calf_width, p.calf_length)}"'
+    cylinder = f'cylinder radius="{_num(p.hip_radius)}" length="{_num(p.hip_length)}"'
+    return "".join((
+        _joint(f"{hip}_joint", "base", hip, _vec(sx * hip_xy[0], sy * hip_xy[1], 0.0), "1 0 0",
+               (lower[0], upper[0], p.hip_torque, p.hip_velocity)),
+        _link(hip, p.hip_mass, hip_centre, hip_inertia, _geometry(hip_centre, cylinder, "1.5707963267948966 0 0")),
+        _joint(f"{thigh}_joint", hip, thigh, _vec(0.0, sy * p.hip_length, 0.0), "0 1 0",
+               (lower[1], upper[1], p.thigh_torque, p.thigh_velocity)),
+        _link(thigh, p.thigh_mass, thigh_centre, thigh_inertia, _geometry(thigh_centre, thigh_box)),
+        _joint(f"{calf}_joint", thigh, calf, _vec(0.0, 0.0, -p.thigh_length), "0 1 0",
+               (lower[2], upper[2], p.calf_torque, p.calf_velocity)),
+        _link(calf, p.calf_mass, calf_centre, calf_inertia, _geometry(calf_centre, calf_box)),
+        _joint(f"{foot}_joint", calf, foot, _vec(0.0, 0.0, -p.calf_length)),
+        _link(foot, p.foot_mass, "0 0 0", sphere_inertia(p.foot_mass, p.foot_radius),
+              _geometry("0 0 0", f'sphere radius="{_num(p.foot_radius)}"')),
+    ))
+
+
+def urdf_string(params: MorphologyParams, name: str = "morph") -> str:
+    """The URDF text of ``params``: primitives only (no meshes, no visuals).
+
+    Args:
+        params: the morphology (validated here).
+        name: the ``<robot name>``.
+
+    Returns:
+        A URDF with 17 links (``base`` + 4 × hip, thigh, calf, foot), 12 revolute
+        and 4 fixed joints; see the module docstring for the layout.
+    """
+    validate(params)
+    hip_xy = hip_position(params)
+    lower, upper = joint_limits(params)
+    parts = ['<?xml version="1.0"?>\n', f'<robot name="{name}">\n', _trunk(params)]
+    for i, leg in enumerate(QUADRUPED_LEGS):
+        parts.append(_leg(params, leg, hip_xy, lower[3 * i:3 * i + 3], upper[3 * i:3 * i + 3]))
+    parts.append("</robot>\n")
+    return "".join(parts)
+
+
+def write_urdf(params: MorphologyParams, path: str | Path, name: str = "morph") -> Path:
+    """Write :func:`urdf_string` of ``params`` to ``path`` (parents created); return the path."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(urdf_string(params, name=name), encoding="utf-8")
+    return path
+
+
+# --------------------------------------------------------------------------- RobotSpec
+
+
+def spec_from_params(
+    params: MorphologyParams,
+    name: str,
+    urdf_path: str | Path,
+    *,
+    source: str = "frbench morphology generator",
+    license: str = "BSD-3-Clause",
+) -> RobotSpec:
+    """The :class:`RobotSpec` of a generated quadruped.
+
+    Args:
+        params: the morphology.
+        name: registry name of the robot.
+        urdf_path: where :func:`write_urdf` wrote (or will write) its URDF.
+        source, license: provenance shown by ``frbench robots``.
+
+    Returns:
+        A quadruped spec with 12 joints in canonical order, 4 mass groups,
+        13 contact groups, physics_dt 0.005 s.
+    """
+    validate(params)
+    hips, thighs, calves = ([f"{leg}_{part}" for leg in QUADRUPED_LEGS] for part in ("hip", "thigh", "calf"))
+    mass_groups, contact_groups, knee_groups = quadruped_groups("base", tuple(hips), tuple(thighs), tuple(calves))
+    lower, upper = joint_limits(params)
+    shapes = tuple((h, "cylinder") for h in hips) + tuple((f, "sphere") for f in FOOT_LINKS)
+    return RobotSpec(
+        name=name,
+        kind="quadruped",
+        urdf_path=Path(urdf_path),
+        joint_names=JOINT_NAMES,
+        default_pose=default_pose(params),
+        kp=(float(params.kp),) * 12,
+        kd=(float(params.kd),) * 12,
+        torque_limits=(float(params.hip_torque), float(params.thigh_torque), float(params.calf_torque)) * 4,
+        joint_lower=lower,
+        joint_upper=upper,
+        foot_links=FOOT_LINKS,
+        mass_groups=mass_groups,
+        contact_groups=contact_groups,
+        knee_groups=knee_groups,
+        nominal_height=nominal_height(params),
+        physics_dt=0.005,
+        collision_shapes=shapes,
+        source=source,
+        license=license,
+        notes=f"primitive-geometry quadruped, total mass {total_mass(params):.3f} kg",
+    )
+
+
+# --------------------------------------------------------------------------- presets
+
+_SPOT_TOTAL_MASS = 32.5  # kg, manufacturer's spec sheet (see module docstring)
+_SPOT_HIP_MASS, _SPOT_THIGH_MASS, _SPOT_CALF_MASS, _SPOT_FOOT_MASS = 1.68, 2.34, 0.35, 0.04
+
+#: Spot-like quadruped: Menagerie ``spot.xml`` kinematics and leg masses, the
+#: spec sheet's 32.5 kg total (trunk 14.86 kg), estimated trunk box.
+SPOT_LIKE = MorphologyParams(
+    trunk_mass=_SPOT_TOTAL_MASS - 4 * (_SPOT_HIP_MASS + _SPOT_THIGH_MASS + _SPOT_CALF_MASS + _SPOT_FOOT_MASS),
+    trunk_length=0.892,
+    trunk_width=0.256,
+    trunk_height=0.205,
+    hip_mass=_SPOT_HIP_MASS,
+    hip_length=0.1108,
+    thigh_mass=_SPOT_THIGH_MASS,
+    thigh_length=0.321,
+    thigh_width=0.12,
+    thigh_height=0.10,
+    calf_mass=_SPOT_CALF_MASS,
+    calf_length=0.3365,
+    calf_width=0.046,
+    calf_height=0.074,
+    foot_radius=0.036,
+    foot_mass=_SPOT_FOOT_MASS,
+    hip_x=0.29785,
+    hip_y=0.055,
+    hip_torque=45.0,
+    thigh_torque=45.0,
+    calf_torque=113.2,  # upper end of the angle-dependent 30.6–113.2 N·m knee limit
+    hip_lower=-0.785,
+    hip_upper=0.785,
+    thigh_front_lower=-0.899,
+    thigh_front_upper=2.295,
+    thigh_rear_lower=-0.899,
+    thigh_rear_upper=2.295,
+    calf_lower=-2.793,
+    calf_upper=-0.254,
+    stand_hip=0.0,
+    stand_thigh_front=0.9,
+    stand_thigh_rear=1.1,
+    stand_calf=-1.5,
+    kp=150.0,  # published 60 sags 12 %; see frbench.robots.builtin on gains
+    kd=3.0,
+    hip_inertia=(0.00211474, 0.00181296, 0.00226544),
+    thigh_inertia=(0.0275596, 0.0273549, 0.00284815),
+    calf_inertia=(0.00399902, 0.00405032, 0.00014934),
+)
+
+#: Lite3-like quadruped: DeepRoboticsLab ``Lite3.urdf`` masses, collision boxes,
+#: kinematics and inertias.
+LITE3_LIKE = MorphologyParams(
+    trunk_mass=5.606,
+    trunk_length=0.50,
+    trunk_width=0.10,
+    trunk_height=0.12,
+    hip_mass=0.55,
+    hip_length=0.09735,
+    thigh_mass=0.86,
+    thigh_length=0.200,
+    thigh_width=0.045,
+    thigh_height=0.040,
+    calf_mass=0.153,
+    calf_length=0.210,
+    calf_width=0.03,
+    calf_height=0.03,
+    hip_radius=0.04,
+    foot_radius=0.022,
+    foot_mass=0.02,
+    hip_x=0.1745,
+    hip_y=0.062,
+    hip_torque=24.0,
+    thigh_torque=24.0,
+    calf_torque=36.0,
+    hip_velocity=26.2,
+    thigh_velocity=26.2,
+    calf_velocity=17.3,
+    hip_lower=-0.523,
+    hip_upper=0.523,
+    thigh_front_lower=-0.314,
+    thigh_front_upper=2.67,
+    thigh_rear_lower=-0.314,
+    thigh_rear_upper=2.67,
+    calf_lower=-2.792,
+    calf_upper=-0.524,
+    stand_hip=0.0,
+    stand_thigh_front=1.0,
+    stand_thigh_rear=1.0,
+    stand_calf=-1.8,
+    kp=60.0,  # published 20 sags 26 %; see frbench.robots.builtin on gains
+    kd=1.5,
+    trunk_inertia=(0.02456, 0.05518, 0.07016),
+    hip_inertia=(0.0003949, 0.0004028, 0.0004472),
+    thigh_inertia=(0.005736, 0.004960, 0.001436),
+    calf_inertia=(0.00089039, 0.00090672, 3.1266e-05),
+)

@@ -1,0 +1,27 @@
+"""The benchmark protocol's version and constants (see docs/protocol.md).
+
+Change ``PROTOCOL_VERSION`` whenever a change can move a number: initial
+states, terrain geometry, success thresholds, physics or control settings.
+Every results file records it; the leaderboard refuses unknown versions.
+"""
+
+from __future__ import annotations
+
+#: The protocol this code implements.
+PROTOCOL_VERSION = "1.0"
+#: Every protocol version whose results the leaderboard accepts.
+KNOWN_PROTOCOL_VERSIONS = ("1.0",)
+#: Version of the results JSON layout written by ``frbench evaluate``.
+RESULTS_SCHEMA_VERSION = 1
+
+#: Control period [s] (50 Hz) for every robot and backend.
+CONTROL_DT = 0.02
+#: Evaluation episode length [s].
+EPISODE_SECONDS = 5.0
+
+#: The standard grid a leaderboard record must cover to be ranked.
+STANDARD_ROBOTS = ("go2", "go1", "aliengo", "spot_like", "lite3_like")
+STANDARD_BACKENDS = ("mujoco", "pybullet")
+STANDARD_TERRAINS = ("flat", "rough", "slopes", "stairs", "stones", "gaps", "beams")
+STANDARD_LEVELS = (1, 5, 10)
+STANDARD_SEEDS = (0, 1, 2, 3)

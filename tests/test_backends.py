@@ -1,0 +1,157 @@
+"""The two backends: conventions, cross-simulator agreement, standing, determinism, divergence."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+from frbench.backends import make_backend
+from frbench.backends.base import PhysicsParams, RobotState
+from frbench.robots import get_robot, ground_truth
+from frbench.robots.check import check_robot, random_configurations, stand_test
+
+BUILTIN = ("go2", "go1", "aliengo", "spot_like", "lite3_like", "g1")
+BACKENDS = ("mujoco", "pybullet")
+
+
+@pytest.mark.parametrize("name", BUILTIN)
+def test_mass_and_com_agree_across_pinocchio_mujoco_pybullet(name):
+    report = check_robot(get_robot(name), n_random=3, stand=False)
+    assert report.max_mass_error < 1e-6
+    assert report.max_com_error < 1e-4
+    assert set(report.mass) == {"pinocchio", "mujoco", "pybullet"}
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("name", BUILTIN)
+def test_robot_stands_on_its_pd_for_two_seconds(name, backend):
+    result = stand_test(get_robot(name), backend)
+    assert abs(result["height"] - result["nominal_height"]) <= 0.10 * result["nominal_height"], result
+    assert abs(result["force_z"] - result["weight"]) <= 0.05 * result["weight"], result
+    assert result["ok"], result["reason"]
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_state_round_trips_through_reset(backend):
+    """Root frame pose, world linear and body angular velocity come back as they were set.
+
+    (PyBullet passes orientations through single precision: 1e-6.)
+    """
+    ATOL = 1e-6
+    spec = get_robot("go2")
+    rng = np.random.default_rng(3)
+    pos, quat, q = random_configurations(spec, rng, 3)
+    state = RobotState.at_rest(pos, quat, q)
+    state.base_linvel = rng.normal(size=(3, 3))
+    state.base_angvel = rng.normal(size=(3, 3))
+    state.qd = rng.normal(size=(3, 12))
+    sim = make_backend(backend, spec, 3)
+    sim.reset(np.arange(3), state)
+    out = sim.state()
+    sim.close()
+    np.testing.assert_allclose(out.base_pos, state.base_pos, atol=ATOL)
+    sign = np.sign(np.sum(out.base_quat * state.base_quat, axis=1, keepdims=True))
+    np.testing.assert_allclose(out.base_quat * sign, state.base_quat, atol=ATOL)
+    np.testing.assert_allclose(out.base_linvel, state.base_linvel, atol=ATOL)
+    np.testing.assert_allclose(out.base_angvel, state.base_angvel, atol=ATOL)
+    np.testing.assert_allclose(out.q, state.q, atol=ATOL)
+    np.testing.assert_allclose(out.qd, state.qd, atol=ATOL)
+
+
+def _rollout(backend: str, spec, steps: int = 25) -> np.ndarray:
+    rng = np.random.default_rng(11)
+    sim = make_backend(backend, spec, 2)
+    pos, quat, q = random_configurations(spec, rng, 2)
+    pos[:, 2] = 0.5
+    sim.reset(np.arange(2), RobotState.at_rest(pos, quat, q))
+    trace = []
+    for _ in range(steps):
+        sim.step(rng.uniform(spec.joint_lower, spec.joint_upper, size=(2, spec.n_joints)))
+        s = sim.state()
+        trace.append(np.concatenate([s.base_pos, s.base_quat, s.q, s.qd], axis=1))
+    sim.close()
+    return np.array(trace)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_same_inputs_give_identical_trajectories(backend):
+    spec = get_robot("go1")
+    first, second = _rollout(backend, spec), _rollout(backend, spec)
+    assert np.array_equal(first, second)
+    assert np.abs(first[-1] - first[0]).max() > 0.1  # it did move
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_contacts_of_a_robot_lying_on_its_back(backend):
+    spec = get_robot("go2")
+    sim = make_backend(backend, spec, 1)
+    state = RobotState.at_rest([[0, 0, 0.12]], [0.0, 1.0, 0.0, 0.0], [spec.default_pose])  # upside down
+    sim.reset([0], state)
+    for _ in range(40):
+        sim.step(np.asarray(spec.default_pose)[None])
+    contacts = sim.contacts()
+    sim.close()
+    assert contacts.group_contact[0, 0]  # the base touches the ground
+    assert not contacts.foot_contact[0].any()
+    weight = ground_truth.total_mass(spec) * 9.81
+    assert contacts.link_force[0, :, 2].sum() == pytest.approx(weight, rel=0.05)
+    assert contacts.body_force_max[0] > 0.5 * weight
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_diverging_simulation_does_not_stop_the_others(backend):
+    spec = get_robot("go2")
+    sim = make_backend(backend, spec, 2)
+    state = RobotState.standing(spec, 2)
+    state.qd[1, 0] = np.nan  # a simulation gone bad
+    sim.reset(np.arange(2), state)
+    for _ in range(5):
+        sim.step(np.tile(spec.default_pose, (2, 1)))
+    assert sim.diverged.tolist() == [False, True]
+    assert np.all(np.isfinite(sim.state().base_pos[0]))
+    sim.reset([1], RobotState.standing(spec, 1))
+    assert not sim.diverged[1]
+    sim.close()
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_per_simulation_friction_gains_and_payload(backend):
+    spec = get_robot("go2")
+    sim = make_backend(backend, spec, 2)
+    params = PhysicsParams.nominal(spec, 2)
+    params.payload = np.array([0.0, 2.0])
+    params.friction = np.array([1.0, 0.05])
+    sim.set_params(params)
+    state = RobotState.standing(spec, 2)
+    sim.reset(np.arange(2), state)
+    masses, _ = sim.mass_properties()
+    np.testing.assert_allclose(masses, [16.085, 18.085], atol=1e-9)
+    state.base_linvel[:, 0] = 1.0  # slide forward
+    sim.reset(np.arange(2), state)
+    for _ in range(10):
+        sim.step(np.tile(spec.default_pose, (2, 1)))
+    x = sim.state().base_pos[:, 0]
+    sim.close()
+    assert x[1] > x[0] + 0.02  # the slippery one slides further
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_wrong_target_shape_is_refused(backend):
+    sim = make_backend(backend, get_robot("go2"), 2)
+    with pytest.raises(ValueError, match=re.escape("joint targets of shape (2, 11), expected (2, 12)")):
+        sim.step(np.zeros((2, 11)))
+    sim.close()
+
+
+def test_pd_torque_is_clipped_to_the_effort_limit():
+    spec = get_robot("go2")
+    for backend in BACKENDS:
+        sim = make_backend(backend, spec, 1)
+        sim.reset([0], RobotState.at_rest([[0, 0, 1.0]], [1, 0, 0, 0], [spec.default_pose]))
+        sim.step(np.asarray(spec.joint_upper)[None])  # far from every joint
+        tau = sim.state().tau[0]
+        sim.close()
+        assert np.all(np.abs(tau) <= np.asarray(spec.torque_limits) + 1e-9), backend
+        assert np.any(np.isclose(np.abs(tau), spec.torque_limits)), backend
