@@ -6,6 +6,9 @@ import os
 
 import pytest
 
+# headless rendering: MuJoCo reads this when first imported, which a test may do before `frbench render` runs
+os.environ.setdefault("MUJOCO_GL", "egl")
+
 
 @pytest.fixture(scope="session", autouse=True)
 def _isolated_cache(tmp_path_factory):

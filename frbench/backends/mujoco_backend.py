@@ -32,8 +32,8 @@ _INSTABILITY = [int(getattr(mujoco.mjtWarning, w)) for w in ("mjWARN_BADQPOS", "
 
 
 def default_threads() -> int:
-    """Threads for the batch: all cores (2 on the reference machine)."""
-    return max(1, os.cpu_count() or 1)
+    """Threads for the batch: ``$FRBENCH_MUJOCO_THREADS``, else all cores (2 on the reference machine)."""
+    return int(os.environ.get("FRBENCH_MUJOCO_THREADS") or max(1, os.cpu_count() or 1))
 
 
 class MujocoBackend:

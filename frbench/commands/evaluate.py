@@ -1,0 +1,85 @@
+"""``frbench evaluate``: score a policy over robots × backends × terrains × levels × seeds × episodes."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from pathlib import Path
+
+from frbench.errors import FrbenchError
+
+
+def _list(text: str) -> list[str]:
+    return [item.strip() for item in text.split(",") if item.strip()]
+
+
+def _ints(text: str) -> list[int]:
+    try:
+        return [int(item) for item in _list(text)]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a comma-separated list of integers") from None
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add ``evaluate`` to the CLI."""
+    from frbench.evaluation.grid import EvaluationRequest
+
+    d = EvaluationRequest()
+    p = sub.add_parser("evaluate", help="score a recovery policy in MuJoCo and PyBullet",
+                       description="With no arguments: the best shipped policy on Go2, both backends, every terrain.")
+    p.add_argument("--policy", default=d.policy, help=f"policy name, checkpoint file or run folder (default {d.policy})")
+    p.add_argument("--robots", type=_list, default=d.robots, help="comma-separated robot names or URDF paths")
+    p.add_argument("--backends", type=_list, default=d.backends, help="mujoco,pybullet")
+    p.add_argument("--terrains", type=_list, default=d.terrains, help="terrain families (default: all seven)")
+    p.add_argument("--levels", type=_ints, default=d.levels, help="difficulty levels 1-10 (default 1,5,10)")
+    p.add_argument("--seeds", type=_ints, default=d.seeds, help="evaluation seeds (default 0,1)")
+    p.add_argument("--episodes", type=int, default=d.episodes, help="episodes per cell (default 4)")
+    p.add_argument("--noise", action="store_true", help="add sensor noise to the observations")
+    p.add_argument("--jobs", type=int, default=0, help="worker processes (default: one per core)")
+    p.add_argument("--out", type=Path, default=None, help="results JSON (default results/<policy>.json)")
+    p.set_defaults(func=run)
+
+
+def _check_writable(path: Path) -> None:
+    parent = path.parent if str(path.parent) else Path(".")
+    if path.exists() and path.is_dir():
+        raise FrbenchError(f"--out {path}: is a folder, expected a file path")
+    existing = next((p for p in [parent, *parent.parents] if p.exists()), Path("."))
+    if not existing.is_dir() or not os.access(existing, os.W_OK):
+        raise FrbenchError(f"--out {path}: cannot write there ({existing} is not a writable folder)")
+    if path.exists() and not os.access(path, os.W_OK):
+        raise FrbenchError(f"--out {path}: the file exists and is not writable")
+
+
+def run(args) -> int:
+    """Validate, run the grid with a progress bar, print the table, write the results atomically."""
+    from tqdm import tqdm
+
+    from frbench.evaluation.grid import EvaluationRequest, build_results, run_grid, validate
+    from frbench.evaluation.results import results_table
+    from frbench.io import atomic_write_text
+
+    request = EvaluationRequest(
+        policy=args.policy, robots=args.robots, backends=args.backends, terrains=args.terrains,
+        levels=args.levels, seeds=args.seeds, episodes=args.episodes, noise=args.noise, jobs=args.jobs,
+    )
+    out = args.out or Path("results") / f"{Path(args.policy).stem or 'policy'}.json"
+    _check_writable(out)
+    policy = validate(request)
+    cells = request.cells()
+    print(
+        f"frbench evaluate: policy {policy.name!r}, {len(cells)} cells x {request.episodes} episodes "
+        f"({', '.join(request.robots)} | {', '.join(request.backends)} | {len(request.terrains)} terrains | "
+        f"levels {','.join(map(str, request.levels))} | seeds {','.join(map(str, request.seeds))})",
+        file=sys.stderr,
+    )
+    with tqdm(total=len(cells), unit="cell", file=sys.stderr, dynamic_ncols=True) as bar:
+        episodes = run_grid(request, progress=lambda cell: bar.update(1))
+    results = build_results(request, policy, episodes)
+    print(results_table(results["summary"], results["sim_to_sim"]))
+    atomic_write_text(out, json.dumps(results, indent=1) + "\n")
+    total = sum(c["successes"] for c in results["cells"])
+    print(f"\n{total}/{len(episodes)} episodes succeeded. Results written to {out}")
+    return 0

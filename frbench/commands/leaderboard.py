@@ -1,0 +1,131 @@
+"""``frbench submit`` and ``frbench leaderboard``: the shared leaderboard under ``leaderboard/``.
+
+``frbench submit RESULTS.json [--name N --description D --submitter S --link URL]``
+checks a results file written by ``frbench evaluate`` (schema, self-consistency,
+known protocol version), recomputes its scores and adds it as
+``leaderboard/records/<id>.json``, then regenerates ``README.md`` and
+``index.html``. Bad input: one line on stderr naming the file and field, exit 2,
+nothing written.
+
+``frbench leaderboard [--format table|md|html|json] [--robot R --backend B --terrain T]``
+prints the ranking (table, json) or regenerates ``leaderboard/README.md`` (md)
+or ``leaderboard/index.html`` (html). ``frbench leaderboard --check`` validates
+every record and that the generated files are up to date; it exits 1 with one
+line per problem (for CI).
+
+The leaderboard folder is ``--root``, else ``$FRBENCH_LEADERBOARD_DIR``, else the
+repository's ``leaderboard/`` for a source checkout, else ``./leaderboard``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from frbench.errors import FrbenchError, unknown_name
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    submit = subparsers.add_parser(
+        "submit",
+        help="add a results file to the leaderboard",
+        description="Check a results file from `frbench evaluate` and add it to the leaderboard as a new record.",
+    )
+    submit.add_argument("results", metavar="RESULTS.json", help="results file written by `frbench evaluate`")
+    submit.add_argument("--name", help="entry name: 1-64 of A-Z a-z 0-9 . _ - (default: the results' policy name)")
+    submit.add_argument("--description", default="", help="one line of plain text, at most 280 characters")
+    submit.add_argument("--submitter", default=None, help="who submits (default: anonymous), at most 64 characters")
+    submit.add_argument("--link", default=None, help="http(s) URL of a paper, code or model card")
+    submit.add_argument("--root", default=None, help="leaderboard folder (default: see `frbench leaderboard --help`)")
+    submit.add_argument("--dry-run", action="store_true", help="check and score the results without writing anything")
+    submit.set_defaults(func=run_submit)
+
+    board = subparsers.add_parser(
+        "leaderboard",
+        help="print the leaderboard or regenerate README.md / index.html",
+        description=(
+            "Print the leaderboard ranking, regenerate leaderboard/README.md (--format md) or leaderboard/index.html "
+            "(--format html), or check the records and generated files (--check). The leaderboard folder is --root, "
+            "else $FRBENCH_LEADERBOARD_DIR, else the repository's leaderboard/ when frbench runs from a source "
+            "checkout, else ./leaderboard."
+        ),
+    )
+    board.add_argument("--format", choices=("table", "md", "html", "json"), default=None,
+                       help="table or json print the ranking; md and html regenerate README.md and index.html (default: table)")
+    board.add_argument("--robot", help="score only this robot's cells (table and json)")
+    board.add_argument("--backend", help="score only this backend's cells (table and json)")
+    board.add_argument("--terrain", help="score only this terrain family's cells (table and json)")
+    board.add_argument("--root", default=None, help="leaderboard folder")
+    board.add_argument("--check", action="store_true",
+                       help="validate every record and that README.md and index.html are up to date; exit 1 if not")
+    board.set_defaults(func=run_leaderboard)
+
+
+def run_submit(args: argparse.Namespace) -> int:
+    from frbench.leaderboard.board import submit
+    from frbench.leaderboard.paths import resolve_root
+
+    root = resolve_root(args.root)
+    outcome = submit(
+        args.results, root, name=args.name, description=args.description, submitter=args.submitter,
+        link=args.link, dry_run=args.dry_run,
+    )
+    from frbench.leaderboard.render import fmt_score
+
+    record = outcome.record
+    scores = record["scores"]
+    verb = "would add" if args.dry_run else "added"
+    print(
+        f"{verb} record {record['id'][:12]} ({record['submission']['name']}, {record['track']} track): "
+        f"overall success {fmt_score(scores['overall'])}, sim-to-sim gap {fmt_score(scores['sim_to_sim_gap'])}, "
+        f"{scores['cells']} cells"
+    )
+    if outcome.written:
+        print(f"wrote {outcome.path}; commit it with {root / 'README.md'} and {root / 'index.html'}")
+    return 0
+
+
+def run_leaderboard(args: argparse.Namespace) -> int:
+    from frbench.leaderboard.board import check, regenerate
+    from frbench.leaderboard.paths import INDEX, README, resolve_root
+    from frbench.leaderboard.records import load_records
+    from frbench.leaderboard.render import axes, render_json, render_table
+
+    root = resolve_root(args.root)
+    filters = {"robot": args.robot, "backend": args.backend, "terrain": args.terrain}
+    given = [f"--{k}" for k, v in filters.items() if v is not None]
+    if args.check:
+        if args.format or given:
+            raise FrbenchError("--check takes no --format, --robot, --backend or --terrain")
+        report = check(root)
+        if not report.ok:
+            for problem in report.problems:
+                print(f"frbench leaderboard --check: {problem}", file=sys.stderr)
+            return 1
+        main = sum(1 for r in report.records if r["track"] == "main")
+        print(f"leaderboard {root} is valid and up to date: {len(report.records)} records "
+              f"({main} main, {len(report.records) - main} partial)")
+        return 0
+    fmt = args.format or "table"
+    if fmt in ("md", "html"):
+        if given:
+            raise FrbenchError(
+                f"{', '.join(given)}: filters apply to --format table and json; README.md and index.html always show "
+                "the whole board (the page has its own filters)"
+            )
+        target = README if fmt == "md" else INDEX
+        changed = regenerate(root, only=[target])
+        state = "wrote" if target in changed else "up to date:"
+        print(f"{state} {root / target}")
+        for other in changed:
+            if other != target:
+                print(f"wrote {root / other}")
+        return 0
+    records = load_records(root)
+    known = axes(records)
+    for key, listing in (("robot", "robots"), ("backend", "backends"), ("terrain", "families")):
+        if filters[key] is not None and filters[key] not in known[listing]:
+            raise unknown_name(key, filters[key], known[listing])
+    render = render_table if fmt == "table" else render_json
+    sys.stdout.write(render(records, **filters))
+    return 0

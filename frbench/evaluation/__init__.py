@@ -1,0 +1,1 @@
+"""``frbench evaluate``: run a policy over a grid of cells and write a results JSON."""

@@ -1,0 +1,139 @@
+"""The evaluation grid: validate the request, run its cells in parallel processes, build the results.
+
+Cells run in a process pool (one MuJoCo thread per worker, so two workers use
+two cores); a progress bar counts cells. Results are deterministic: the same
+policy, grid and protocol give the same numbers whatever the worker count.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import os
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+
+from frbench.errors import FrbenchError, unknown_name
+from frbench.evaluation.results import aggregate_cells, sim_to_sim, summarize
+from frbench.evaluation.runner import Cell, run_cell
+from frbench.tasks.protocol import PROTOCOL_VERSION, RESULTS_SCHEMA_VERSION
+
+
+@dataclass
+class EvaluationRequest:
+    """What ``frbench evaluate`` was asked to run (the resolved config of the results)."""
+
+    policy: str = "scripted"
+    robots: list[str] = field(default_factory=lambda: ["go2"])
+    backends: list[str] = field(default_factory=lambda: ["mujoco", "pybullet"])
+    terrains: list[str] = field(default_factory=lambda: ["flat", "rough", "slopes", "stairs", "stones", "gaps", "beams"])
+    levels: list[int] = field(default_factory=lambda: [1, 5, 10])
+    seeds: list[int] = field(default_factory=lambda: [0, 1])
+    episodes: int = 4
+    noise: bool = False
+    jobs: int = 0
+
+    def cells(self) -> list[Cell]:
+        """Every cell of the grid, in a fixed order."""
+        return [
+            Cell(robot, backend, terrain, level, seed, self.episodes)
+            for robot in self.robots for backend in self.backends for terrain in self.terrains
+            for level in self.levels for seed in self.seeds
+        ]
+
+
+def validate(request: EvaluationRequest):
+    """Resolve and check every name and number before anything runs; returns the policy."""
+    from frbench.backends import BACKENDS
+    from frbench.policies.registry import load_policy
+    from frbench.robots import get_robot
+    from frbench.terrains import FAMILIES
+
+    for backend in request.backends:
+        if backend not in BACKENDS:
+            raise unknown_name("backend", backend, BACKENDS)
+    for terrain in request.terrains:
+        if terrain not in FAMILIES:
+            raise unknown_name("terrain", terrain, FAMILIES)
+    for level in request.levels:
+        if not 1 <= level <= 10:
+            raise FrbenchError(f"level {level} is out of range: levels are 1 to 10")
+    if request.episodes < 1:
+        raise FrbenchError(f"--episodes {request.episodes}: expected at least 1")
+    if not request.seeds:
+        raise FrbenchError("--seeds is empty: expected at least one seed")
+    policy = load_policy(request.policy)
+    for robot in request.robots:
+        spec = get_robot(robot)
+        if not policy.supports(spec):
+            raise FrbenchError(f"policy {policy.name!r} does not support robot {spec.name!r} ({spec.kind})")
+    return policy
+
+
+def _worker_init() -> None:
+    os.environ["FRBENCH_MUJOCO_THREADS"] = "1"
+    try:
+        import torch
+
+        torch.set_num_threads(1)
+    except ImportError:
+        pass
+
+
+def run_grid(request: EvaluationRequest, progress=None) -> list[dict]:
+    """Run every cell; returns the episode records sorted by cell and episode."""
+    cells = request.cells()
+    jobs = request.jobs or min(len(cells), os.cpu_count() or 1)
+    records: list[dict] = []
+    if jobs <= 1:
+        for cell in cells:
+            records += run_cell(cell, request.policy, request.noise)
+            if progress:
+                progress(cell)
+    else:
+        import multiprocessing
+
+        context = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=_worker_init) as pool:
+            futures = {pool.submit(run_cell, cell, request.policy, request.noise): cell for cell in cells}
+            for future in as_completed(futures):
+                records += future.result()
+                if progress:
+                    progress(futures[future])
+    records.sort(key=lambda r: (r["robot"], r["backend"], r["terrain"], r["level"], r["seed"], r["episode"]))
+    return records
+
+
+def build_results(request: EvaluationRequest, policy, episodes: list[dict]) -> dict:
+    """The results document (see `frbench.evaluation.results`)."""
+    from frbench.evaluation.provenance import frbench_info, library_versions
+    from frbench.io import sha256_file
+    from frbench.robots import get_robot
+    from frbench.robots.sim_urdf import sim_robot_file
+
+    robots = {}
+    for name in request.robots:
+        spec = get_robot(name)
+        sim = sim_robot_file(spec)
+        robots[spec.name] = {"urdf_sha256": sim.source_sha256, "sim_urdf_sha256": sim.sha256, "source": spec.source}
+    checkpoint = getattr(policy, "checkpoint", None)
+    cells = aggregate_cells(episodes)
+    summary = summarize(cells)
+    config = {k: v for k, v in request.__dict__.items() if k != "jobs"}
+    return {
+        "schema_version": RESULTS_SCHEMA_VERSION,
+        "protocol_version": PROTOCOL_VERSION,
+        "frbench": frbench_info(),
+        "versions": library_versions(),
+        "created": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "policy": {
+            "name": policy.name,
+            "checkpoint": str(checkpoint) if checkpoint else None,
+            "sha256": sha256_file(checkpoint) if checkpoint else None,
+        },
+        "config": config,
+        "robots": robots,
+        "cells": cells,
+        "episodes": episodes,
+        "summary": summary,
+        "sim_to_sim": sim_to_sim(summary),
+    }

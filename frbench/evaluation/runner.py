@@ -1,0 +1,88 @@
+"""Run one cell of the evaluation grid: one robot, backend, terrain, level and seed.
+
+All episodes of a cell run side by side in one batched backend. The policy is
+loaded once per worker process. Each episode becomes a plain dict (the
+per-episode records of the results JSON).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from frbench.policies.base import checked_actions
+from frbench.tasks.recovery import EPISODE_STEPS, RecoveryTask
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One unit of work: ``episodes`` episodes of (robot, backend, terrain, level, seed)."""
+
+    robot: str
+    backend: str
+    terrain: str
+    level: int
+    seed: int
+    episodes: int
+
+    def key(self) -> tuple:
+        """Sort key and identity."""
+        return (self.robot, self.backend, self.terrain, self.level, self.seed)
+
+
+@lru_cache(maxsize=4)
+def _policy(reference: str):
+    from frbench.policies.registry import load_policy
+
+    return load_policy(reference)
+
+
+def _none_if_nan(value: float) -> float | None:
+    return None if value is None or not math.isfinite(value) else float(value)
+
+
+def run_cell(cell: Cell, policy_reference: str, noise: bool = False) -> list[dict]:
+    """Run the cell's episodes with the policy; one record per episode."""
+    from frbench.robots import get_robot
+    from frbench.tasks.initial_states import draw_starts
+    from frbench.terrains import make_terrain
+
+    spec = get_robot(cell.robot)
+    policy = _policy(policy_reference)
+    terrain = make_terrain(cell.terrain, cell.level, cell.seed)
+    starts = draw_starts(spec, terrain, cell.terrain, cell.level, cell.seed, range(cell.episodes))
+    noise_rng = np.random.default_rng([cell.seed, cell.level, 7]) if noise else None
+    task = RecoveryTask(spec, cell.backend, terrain, cell.episodes, noise_rng=noise_rng)
+    try:
+        obs = task.reset(starts)
+        policy.reset(spec, cell.episodes)
+        for _ in range(EPISODE_STEPS):
+            actions = checked_actions(policy, policy.act(obs), cell.episodes, spec.n_joints)
+            obs = task.step(actions)
+    finally:
+        task.close()
+    success, metrics = task.success, task.metrics
+    diverged = metrics.diverged | task.settle_diverged
+    base = {k: v for k, v in asdict(cell).items() if k != "episodes"}
+    records = []
+    for i in range(cell.episodes):
+        records.append(
+            {
+                **base,
+                "episode": i,
+                "initial_pose": starts.kinds[i],
+                "success": bool(success.success[i] and not diverged[i]),
+                "time_to_recover": _none_if_nan(success.time_to_recover[i]) if success.success[i] else None,
+                "final_displacement": float(metrics.final_displacement[i]),
+                "max_displacement": float(metrics.max_displacement[i]),
+                "energy": float(metrics.energy[i]),
+                "smoothness": float(metrics.smoothness[i]),
+                "peak_contact_force": float(metrics.peak_contact_force[i]),
+                "rolled_over": bool(metrics.rolled_over[i]),
+                "diverged": bool(diverged[i]),
+            }
+        )
+    return records

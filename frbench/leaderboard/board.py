@@ -1,0 +1,171 @@
+"""Leaderboard operations: submit a results file, regenerate the rendered files, check everything.
+
+A submission is checked completely before anything is written, so a refused
+submission leaves the leaderboard folder byte-for-byte unchanged. Writers hold
+an exclusive lock on the folder while they list the records, create the new
+record and regenerate ``README.md`` and ``index.html``: two submissions at the
+same moment both land, and whichever regenerates last sees both records.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Sequence
+
+from frbench.errors import FrbenchError, ResultsError
+from frbench.io import atomic_write_text
+from frbench.leaderboard.jsonfile import MAX_RESULTS_BYTES, read_json_object
+from frbench.leaderboard.paths import INDEX, README, RECORDS, SCHEMA
+from frbench.leaderboard.records import (
+    DuplicateRecord,
+    Submission,
+    build_record,
+    create_exclusive,
+    load_record,
+    load_records,
+    locked,
+    record_files,
+    record_text,
+    submission_fields,
+)
+from frbench.leaderboard.render import render_html, render_markdown
+from frbench.leaderboard.results import check_results
+from frbench.schemas import SCHEMA_NAMES, schema_text
+
+
+def _utc_now() -> str:
+    return time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+
+
+def generated_files(records: Sequence[dict]) -> dict[str, str]:
+    """Relative path -> text of every file generated from the records."""
+    files = {README: render_markdown(records), INDEX: render_html(records)}
+    for name in SCHEMA_NAMES:
+        files[f"{SCHEMA}/{name}.schema.json"] = schema_text(name)
+    return files
+
+
+def _write(root: Path, relative: str, text: str) -> bool:
+    """Write one generated file if its content changed; True if written."""
+    path = root / relative
+    try:
+        if path.read_text(encoding="utf-8") == text:
+            return False
+    except (FileNotFoundError, UnicodeDecodeError):
+        pass
+    atomic_write_text(path, text)
+    os.chmod(path, 0o644)
+    return True
+
+
+def _write_generated(root: Path, records: Sequence[dict], only: Sequence[str] | None = None) -> list[str]:
+    files = generated_files(records)
+    wanted = [p for p in files if only is None or p in only or p.startswith(SCHEMA + "/")]
+    return [p for p in wanted if _write(root, p, files[p])]
+
+
+def regenerate(root: Path, *, only: Sequence[str] | None = None) -> list[str]:
+    """Rewrite the generated files (all, or those in ``only``, plus the schema copies) from the records.
+
+    Returns the relative paths that changed. Refuses (writing nothing) if a record is invalid.
+    """
+    with locked(root):
+        return _write_generated(root, load_records(root), only)
+
+
+def read_results(path: str | os.PathLike) -> dict:
+    """Read and check a results file; errors are one line naming the file and the field."""
+    source = os.fspath(path)
+    results = read_json_object(path, limit=MAX_RESULTS_BYTES, source=source)
+    try:
+        check_results(results)
+    except ResultsError as exc:
+        raise ResultsError(f"{source}: {exc}") from None
+    return results
+
+
+def submit(
+    results_path: str | os.PathLike,
+    root: Path,
+    *,
+    name: str | None = None,
+    description: str | None = None,
+    submitter: str | None = None,
+    link: str | None = None,
+    submitted: str | None = None,
+    dry_run: bool = False,
+) -> Submission:
+    """Check ``results_path`` and add it to the leaderboard at ``root`` as a new record."""
+    results = read_results(results_path)
+    fields = submission_fields(
+        results, name=name, description=description, submitter=submitter, link=link,
+        submitted=submitted or _utc_now(),
+    )
+    record = build_record(results, fields)
+    path = root / RECORDS / f"{record['id']}.json"
+    if dry_run:
+        return Submission(record, path, written=False)
+    short = record["id"][:12]
+    folder = root / RECORDS
+    if folder.exists() and not folder.resolve().is_relative_to(root.resolve()):
+        raise FrbenchError(f"{folder} leads outside the leaderboard folder {root}; refusing to write there")
+    with locked(root):
+        if path.exists():
+            raise ResultsError(f"{os.fspath(results_path)}: these results were already submitted as record {short} ({path}); identical resubmissions are refused")
+        try:
+            existing = load_records(root)
+        except ResultsError as exc:
+            raise ResultsError(f"cannot add a record while the leaderboard holds an invalid one: {exc}") from None
+        try:
+            create_exclusive(path, record_text(record))
+        except DuplicateRecord:
+            raise ResultsError(f"{os.fspath(results_path)}: these results were already submitted as record {short} ({path}); identical resubmissions are refused") from None
+        try:
+            _write_generated(root, [*existing, record])
+        except FrbenchError as exc:
+            raise FrbenchError(f"record {short} was written to {path}, but {exc}; run `frbench leaderboard --format md` and `--format html`") from None
+    return Submission(record, path, written=True)
+
+
+@dataclass
+class CheckReport:
+    """What :func:`check` found."""
+
+    records: list[dict] = field(default_factory=list)
+    problems: list[str] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return not self.problems
+
+
+def check(root: Path) -> CheckReport:
+    """Validate every record file and that the generated files match them."""
+    report = CheckReport()
+    paths, others = record_files(root)
+    for other in others:
+        report.problems.append(f"{other}: not a record: record files are named <64 hex digits>.json (a leftover temporary file?)")
+    for path in paths:
+        try:
+            report.records.append(load_record(path))
+        except ResultsError as exc:
+            report.problems.append(str(exc))
+    if report.problems:
+        report.problems.append(f"{root / README} and {root / INDEX} were not compared because of the problems above")
+        return report
+    for relative, text in generated_files(report.records).items():
+        path = root / relative
+        try:
+            current = path.read_text(encoding="utf-8")
+        except FileNotFoundError:
+            current = None
+        except (OSError, UnicodeDecodeError):
+            current = ""
+        if current != text:
+            how = {README: "--format md", INDEX: "--format html"}.get(relative, "--format md")
+            state = "is missing" if current is None else "is out of date with the records"
+            report.problems.append(f"{path} {state}; run `frbench leaderboard {how}` and commit the result")
+    return report

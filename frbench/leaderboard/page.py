@@ -1,0 +1,450 @@
+"""The static ``leaderboard/index.html`` page: template, style and script.
+
+The page works opened from disk, with no network: data is embedded as JSON,
+the script recomputes scores for the chosen filters from per-(robot, backend,
+terrain, level) aggregates, sorts the tables, draws one SVG success-vs-level
+chart per terrain family and shows a record's provenance on click. It builds
+the DOM with ``textContent`` and attributes only (never ``innerHTML``), so
+submitted text stays text. State lives in the URL hash, e.g.
+``index.html#robot=go2&backend=mujoco&family=stairs&sort=gap&dir=asc&record=<id>``.
+"""
+
+PAGE_TEMPLATE = """<!DOCTYPE html>
+<html lang="en">
+<head>
+<meta charset="utf-8">
+<meta name="viewport" content="width=device-width, initial-scale=1">
+<meta http-equiv="Content-Security-Policy" content="@CSP@">
+<meta name="generator" content="frbench leaderboard --format html">
+<title>frbench leaderboard</title>
+<style>@STYLE@</style>
+</head>
+<body>
+<header>
+<h1>frbench leaderboard</h1>
+<p>Fall-recovery policies evaluated with <code>frbench evaluate</code> and submitted with <code>frbench submit</code>.
+Scores are recomputed from each record's cells for the chosen filters: mean success rate, per terrain family and backend,
+and the mean sim-to-sim gap |MuJoCo &minus; PyBullet| (lower is better). Click a row for its provenance.</p>
+</header>
+<main>
+<form id="filters" aria-label="Filters">
+<label>Robot <select id="filter-robot" name="robot"><option value="">all robots</option></select></label>
+<label>Backend <select id="filter-backend" name="backend"><option value="">both backends</option></select></label>
+<label>Family <select id="filter-family" name="family"><option value="">all families</option></select></label>
+<button type="button" id="filter-reset">Reset</button>
+</form>
+<section id="main-board">
+<h2>Main board</h2>
+<p class="note" id="standard-note"></p>
+<div class="scroll"><table id="main-table" class="board"></table></div>
+<p class="empty" id="main-empty" hidden>No records yet.</p>
+</section>
+<section id="partial-board">
+<h2>Partial records</h2>
+<p class="note">Records that do not cover the whole standard grid, scored on the cells they have; not ranked against the main board.</p>
+<div class="scroll"><table id="partial-table" class="board"></table></div>
+<p class="empty" id="partial-empty" hidden>None.</p>
+</section>
+<section id="details" hidden aria-live="polite">
+<div class="details-head"><h2 id="details-title">Provenance</h2><button type="button" id="details-close">Close</button></div>
+<div id="details-body"></div>
+</section>
+<section id="charts-section">
+<h2>Success vs level</h2>
+<p class="note">Mean success rate per level for each terrain family (main-board records first, at most ten).</p>
+<div id="legend"></div>
+<div id="charts"></div>
+<p class="empty" id="charts-empty" hidden>No data for these filters.</p>
+</section>
+</main>
+<noscript><p>This page needs JavaScript; <a href="README.md">README.md</a> has the same ranking.</p></noscript>
+<script type="application/json" id="leaderboard-data">@DATA@</script>
+<script>@SCRIPT@</script>
+</body>
+</html>
+"""
+
+PAGE_STYLE = """
+:root { --fg: #1d232a; --muted: #5b6570; --line: #d8dde3; --head: #f3f5f7; --sel: #fff4cc; --accent: #1f6feb; }
+* { box-sizing: border-box; }
+body { margin: 0; font: 14px/1.45 system-ui, -apple-system, "Segoe UI", Roboto, "DejaVu Sans", sans-serif; color: var(--fg); background: #fff; }
+header, main { max-width: 1400px; margin: 0 auto; padding: 0 20px; }
+header h1 { margin: 18px 0 4px; font-size: 24px; }
+header p, .note { color: var(--muted); margin: 4px 0 10px; }
+h2 { font-size: 18px; margin: 22px 0 6px; }
+code { font-family: ui-monospace, "DejaVu Sans Mono", monospace; font-size: 12.5px; }
+#filters { display: flex; flex-wrap: wrap; gap: 14px; align-items: center; padding: 10px 12px; margin: 10px 0; background: var(--head); border: 1px solid var(--line); border-radius: 6px; }
+#filters label { font-weight: 600; }
+select, button { font: inherit; margin-left: 4px; padding: 2px 6px; }
+.scroll { overflow-x: auto; }
+table.board { border-collapse: collapse; width: 100%; font-variant-numeric: tabular-nums; }
+table.board th, table.board td { border-bottom: 1px solid var(--line); padding: 5px 7px; text-align: left; white-space: nowrap; }
+table.board th { background: var(--head); position: sticky; top: 0; }
+table.board th button { all: unset; cursor: pointer; font-weight: 600; }
+table.board th button:focus-visible { outline: 2px solid var(--accent); }
+table.board th[aria-sort="ascending"] button::after { content: " \\25B2"; font-size: 10px; }
+table.board th[aria-sort="descending"] button::after { content: " \\25BC"; font-size: 10px; }
+table.board td.num, table.board th.num { text-align: right; }
+table.board td.id { font-family: ui-monospace, "DejaVu Sans Mono", monospace; color: var(--muted); }
+table.board tbody tr { cursor: pointer; }
+table.board tbody tr:hover td { outline: none; filter: brightness(0.97); }
+table.board tbody tr[aria-selected="true"] td { background: var(--sel) !important; }
+table.board td.off { color: #aab2bb; }
+.empty { color: var(--muted); font-style: italic; }
+#details { border: 1px solid var(--line); border-radius: 6px; padding: 4px 16px 12px; margin: 16px 0; background: #fbfcfd; }
+.details-head { display: flex; justify-content: space-between; align-items: center; }
+#details dl { display: grid; grid-template-columns: max-content 1fr; gap: 3px 16px; margin: 6px 0; }
+#details dt { font-weight: 600; color: var(--muted); }
+#details dd { margin: 0; overflow-wrap: anywhere; }
+#details pre { background: var(--head); padding: 8px; border-radius: 4px; max-height: 260px; overflow: auto; margin: 0; font-size: 12px; }
+#details table { border-collapse: collapse; }
+#details table td { padding: 1px 10px 1px 0; font-family: ui-monospace, "DejaVu Sans Mono", monospace; font-size: 12px; }
+#charts { display: flex; flex-wrap: wrap; gap: 12px; }
+#charts figure { margin: 0; border: 1px solid var(--line); border-radius: 6px; padding: 6px; }
+#charts figcaption { font-weight: 600; text-align: center; }
+#charts svg text { font-size: 11px; fill: var(--muted); }
+#legend { display: flex; flex-wrap: wrap; gap: 6px 16px; margin: 6px 0 10px; }
+#legend span.key { display: inline-flex; align-items: center; gap: 6px; cursor: pointer; }
+#legend svg { flex: none; }
+"""
+
+PAGE_SCRIPT = r"""
+(function () {
+  "use strict";
+  var DATA = JSON.parse(document.getElementById("leaderboard-data").textContent);
+  var COLORS = ["#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf", "#7f7f7f", "#bcbd22"];
+  var LABELS = {mujoco: "MuJoCo", pybullet: "PyBullet"};
+  var SVGNS = "http://www.w3.org/2000/svg";
+  var state = {robot: "", backend: "", family: "", sort: "rank", dir: "asc", record: ""};
+
+  function el(tag, attrs, text) {
+    var node = document.createElement(tag);
+    if (attrs) { Object.keys(attrs).forEach(function (k) { node.setAttribute(k, attrs[k]); }); }
+    if (text !== undefined && text !== null) { node.textContent = String(text); }
+    return node;
+  }
+  function svg(tag, attrs, text) {
+    var node = document.createElementNS(SVGNS, tag);
+    Object.keys(attrs || {}).forEach(function (k) { node.setAttribute(k, attrs[k]); });
+    if (text !== undefined) { node.textContent = String(text); }
+    return node;
+  }
+  function fmt(x) { return (x === null || x === undefined) ? "\u2013" : x.toFixed(3); }
+  function mean(acc) { return acc && acc[1] ? acc[0] / acc[1] : null; }
+  function add(map, key, sum, count) {
+    var acc = map[key] || (map[key] = [0, 0]);
+    acc[0] += sum; acc[1] += count;
+  }
+
+  // Scores of one record under the current filters (same rules as frbench/leaderboard/scores.py).
+  function scores(rec) {
+    var total = [0, 0], fam = {}, back = {}, famLevel = {}, pairs = {};
+    rec.groups.forEach(function (g) {
+      var robot = g[0], backend = g[1], terrain = g[2], level = g[3], sum = g[4], count = g[5];
+      if ((state.robot && robot !== state.robot) || (state.backend && backend !== state.backend) ||
+          (state.family && terrain !== state.family)) { return; }
+      total[0] += sum; total[1] += count;
+      add(fam, terrain, sum, count);
+      add(back, backend, sum, count);
+      add(famLevel, terrain + "|" + level, sum, count);
+      var key = robot + "|" + terrain + "|" + level;
+      (pairs[key] || (pairs[key] = {}))[backend] = sum / count;
+    });
+    if (!total[1]) { return null; }
+    var gaps = [];
+    Object.keys(pairs).forEach(function (k) {
+      var p = pairs[k];
+      if (p.mujoco !== undefined && p.pybullet !== undefined) { gaps.push(Math.abs(p.mujoco - p.pybullet)); }
+    });
+    var out = {overall: mean(total), cells: total[1], family: {}, backend: {}, famLevel: {},
+               gap: gaps.length ? gaps.reduce(function (a, b) { return a + b; }, 0) / gaps.length : null};
+    Object.keys(fam).forEach(function (k) { out.family[k] = mean(fam[k]); });
+    Object.keys(back).forEach(function (k) { out.backend[k] = mean(back[k]); });
+    Object.keys(famLevel).forEach(function (k) { out.famLevel[k] = mean(famLevel[k]); });
+    return out;
+  }
+
+  function rankCompare(a, b) {
+    if (a.s.overall !== b.s.overall) { return b.s.overall - a.s.overall; }
+    var ga = a.s.gap, gb = b.s.gap;
+    if ((ga === null) !== (gb === null)) { return ga === null ? 1 : -1; }
+    if (ga !== gb) { return ga - gb; }
+    if (a.r.submitted !== b.r.submitted) { return a.r.submitted < b.r.submitted ? -1 : 1; }
+    return a.r.id < b.r.id ? -1 : (a.r.id > b.r.id ? 1 : 0);
+  }
+
+  function rows(track) {
+    var list = [];
+    DATA.records.forEach(function (r) {
+      if (r.track !== track) { return; }
+      var s = scores(r);
+      if (s) { list.push({r: r, s: s}); }
+    });
+    list.sort(rankCompare);
+    list.forEach(function (row, i) { row.rank = i + 1; });
+    return list;
+  }
+
+  function columns() {
+    var cols = [
+      {key: "rank", label: "#", num: true, dir: "asc", get: function (x) { return x.rank; }},
+      {key: "name", label: "Name", dir: "asc", get: function (x) { return x.r.name; }},
+      {key: "policy", label: "Policy", dir: "asc", get: function (x) { return x.r.policy; }},
+      {key: "submitter", label: "Submitter", dir: "asc", get: function (x) { return x.r.submitter; }},
+      {key: "overall", label: "Overall", num: true, score: true, dir: "desc", get: function (x) { return x.s.overall; }}
+    ];
+    DATA.families.forEach(function (f) {
+      cols.push({key: "family:" + f, label: f, num: true, score: true, dir: "desc", family: f,
+                 get: function (x) { var v = x.s.family[f]; return v === undefined ? null : v; }});
+    });
+    DATA.backends.forEach(function (b) {
+      cols.push({key: "backend:" + b, label: LABELS[b] || b, num: true, score: true, dir: "desc",
+                 get: function (x) { var v = x.s.backend[b]; return v === undefined ? null : v; }});
+    });
+    cols.push({key: "gap", label: "Gap", title: "Sim-to-sim gap |MuJoCo \u2212 PyBullet|, lower is better", num: true, dir: "asc", get: function (x) { return x.s.gap; }});
+    cols.push({key: "cells", label: "Cells", num: true, dir: "desc", get: function (x) { return x.s.cells; }});
+    cols.push({key: "submitted", label: "Submitted", dir: "asc", get: function (x) { return x.r.submitted.slice(0, 10); }});
+    cols.push({key: "id", label: "Record", dir: "asc", id: true, get: function (x) { return x.r.id.slice(0, 12); }});
+    return cols;
+  }
+
+  function sortRows(list, cols) {
+    var col = cols.filter(function (c) { return c.key === state.sort; })[0] || cols[0];
+    var sign = state.dir === "desc" ? -1 : 1;
+    list.sort(function (a, b) {
+      var va = col.get(a), vb = col.get(b);
+      if (va === null || vb === null) {
+        if (va === null && vb === null) { return a.rank - b.rank; }
+        return va === null ? 1 : -1;  // missing values last in both directions
+      }
+      if (va < vb) { return -sign; }
+      if (va > vb) { return sign; }
+      return a.rank - b.rank;
+    });
+  }
+
+  function shade(value) {
+    // light green proportional to success; CSSOM styles are allowed by the page's CSP
+    var alpha = (0.08 + 0.42 * value).toFixed(3);
+    return "rgba(46, 160, 67, " + alpha + ")";
+  }
+
+  function renderTable(track) {
+    var table = document.getElementById(track + "-table");
+    var empty = document.getElementById(track + "-empty");
+    var list = rows(track), cols = columns();
+    sortRows(list, cols);
+    table.textContent = "";
+    empty.hidden = list.length > 0;
+    table.hidden = list.length === 0;
+    if (!DATA.records.some(function (r) { return r.track === track; })) {
+      empty.textContent = track === "main" ? "No records yet: submit one with frbench submit RESULTS.json." : "None.";
+    } else {
+      empty.textContent = "No records match these filters.";
+    }
+    if (!list.length) { return list; }
+    var thead = el("thead"), headRow = el("tr");
+    cols.forEach(function (c) {
+      var th = el("th", {scope: "col", "data-key": c.key, "class": c.num ? "num" : ""});
+      if (state.sort === c.key) { th.setAttribute("aria-sort", state.dir === "asc" ? "ascending" : "descending"); }
+      var button = el("button", {type: "button", title: "Sort by " + (c.title || c.label)}, c.label);
+      button.addEventListener("click", function () {
+        if (state.sort === c.key) { state.dir = state.dir === "asc" ? "desc" : "asc"; }
+        else { state.sort = c.key; state.dir = c.dir; }
+        update();
+      });
+      th.appendChild(button);
+      headRow.appendChild(th);
+    });
+    thead.appendChild(headRow);
+    table.appendChild(thead);
+    var tbody = el("tbody");
+    list.forEach(function (x) {
+      var tr = el("tr", {tabindex: "0", "data-id": x.r.id, "aria-selected": String(state.record === x.r.id)});
+      cols.forEach(function (c) {
+        var v = c.get(x), td;
+        if (c.score || c.key === "gap") {
+          td = el("td", {"class": "num" + (v === null ? " off" : "")}, fmt(v));
+          if (c.score && v !== null) { td.style.backgroundColor = shade(v); }
+        } else if (c.key === "name") {
+          td = el("td", {title: x.r.description || x.r.name}, v);
+        } else {
+          td = el("td", {"class": (c.num ? "num" : "") + (c.id ? " id" : "")}, v);
+        }
+        tr.appendChild(td);
+      });
+      tr.addEventListener("click", function () { select(x.r.id); });
+      tr.addEventListener("keydown", function (e) { if (e.key === "Enter" || e.key === " ") { e.preventDefault(); select(x.r.id); } });
+      tbody.appendChild(tr);
+    });
+    table.appendChild(tbody);
+    return list;
+  }
+
+  function select(id) {
+    state.record = state.record === id ? "" : id;
+    update();
+    if (state.record) { document.getElementById("details").scrollIntoView({block: "nearest"}); }
+  }
+
+  function dlRow(dl, term, value) {
+    dl.appendChild(el("dt", null, term));
+    var dd = el("dd");
+    if (value instanceof Node) { dd.appendChild(value); } else { dd.textContent = value === null || value === undefined || value === "" ? "\u2013" : String(value); }
+    dl.appendChild(dd);
+  }
+
+  function keyTable(obj, fn) {
+    var table = el("table");
+    Object.keys(obj).sort().forEach(function (k) {
+      var tr = el("tr");
+      tr.appendChild(el("td", null, k));
+      tr.appendChild(el("td", null, fn(obj[k])));
+      table.appendChild(tr);
+    });
+    return table;
+  }
+
+  function renderDetails() {
+    var section = document.getElementById("details"), body = document.getElementById("details-body");
+    var rec = DATA.records.filter(function (r) { return r.id === state.record; })[0];
+    body.textContent = "";
+    section.hidden = !rec;
+    if (!rec) { return; }
+    var p = rec.provenance;
+    document.getElementById("details-title").textContent = "Provenance: " + rec.name;
+    var dl = el("dl");
+    dlRow(dl, "Record", rec.id);
+    dlRow(dl, "Track", rec.track === "main" ? "main board (standard grid)" : "partial");
+    dlRow(dl, "Policy", rec.policy);
+    dlRow(dl, "Submitter", rec.submitter);
+    dlRow(dl, "Submitted", rec.submitted);
+    dlRow(dl, "Description", rec.description);
+    if (rec.link && /^https?:\/\//.test(rec.link)) {
+      var a = el("a", {href: rec.link, rel: "noopener noreferrer nofollow"}, rec.link);
+      dlRow(dl, "Link", a);
+    } else { dlRow(dl, "Link", null); }
+    dlRow(dl, "Protocol version", p.protocol_version);
+    dlRow(dl, "frbench", p.frbench.version + " (commit " + p.frbench.git_commit + ")");
+    dlRow(dl, "Results created", p.created);
+    dlRow(dl, "Versions", keyTable(p.versions, function (v) { return v === null ? "\u2013" : v; }));
+    dlRow(dl, "Checkpoint", p.policy.checkpoint === null ? "none (" + p.policy.name + ")" : p.policy.checkpoint);
+    dlRow(dl, "Checkpoint sha256", p.policy.sha256);
+    dlRow(dl, "Robots (URDF sha256, source)", keyTable(p.robots, function (v) { return v.urdf_sha256 + "  " + v.source; }));
+    dlRow(dl, "Seeds", p.config.seeds.join(", "));
+    dlRow(dl, "Episodes", p.config.episodes + " per cell, " + rec.episodes + " scored");
+    dlRow(dl, "Config", el("pre", null, JSON.stringify(p.config, null, 2)));
+    body.appendChild(dl);
+  }
+
+  function renderCharts(mainRows, partialRows) {
+    var charts = document.getElementById("charts"), legend = document.getElementById("legend");
+    charts.textContent = ""; legend.textContent = "";
+    var series = mainRows.concat(partialRows).slice(0, 10);
+    var chartsEmpty = document.getElementById("charts-empty");
+    chartsEmpty.hidden = series.length > 0;
+    chartsEmpty.textContent = DATA.records.length ? "No data for these filters." : "No records yet.";
+    if (!series.length) { return; }
+    series.forEach(function (x, i) {
+      var key = el("span", {"class": "key", "data-id": x.r.id, title: "Show provenance"});
+      var sw = svg("svg", {width: "22", height: "10", "aria-hidden": "true"});
+      sw.appendChild(svg("line", {x1: "0", y1: "5", x2: "22", y2: "5", stroke: COLORS[i], "stroke-width": "3"}));
+      key.appendChild(sw);
+      key.appendChild(document.createTextNode(x.r.name + (x.r.track === "partial" ? " (partial)" : "")));
+      key.addEventListener("click", function () { select(x.r.id); });
+      legend.appendChild(key);
+    });
+    var levels = DATA.levels, lo = Math.min.apply(null, levels), hi = Math.max.apply(null, levels);
+    if (hi === lo) { hi = lo + 1; }
+    var W = 260, H = 180, L = 38, R = 12, T = 10, B = 30;
+    function X(level) { return L + (W - L - R) * (level - lo) / (hi - lo); }
+    function Y(rate) { return T + (H - T - B) * (1 - rate); }
+    var families = state.family ? [state.family] : DATA.families;
+    families.forEach(function (f) {
+      var fig = el("figure", {"data-family": f});
+      fig.appendChild(el("figcaption", null, f));
+      var chart = svg("svg", {width: String(W), height: String(H), viewBox: "0 0 " + W + " " + H, role: "img",
+                              "aria-label": "Success rate versus level on " + f});
+      [0, 0.25, 0.5, 0.75, 1].forEach(function (t) {
+        chart.appendChild(svg("line", {x1: String(L), x2: String(W - R), y1: String(Y(t)), y2: String(Y(t)),
+                                       stroke: t === 0 ? "#9aa4ae" : "#e3e7eb", "stroke-width": "1"}));
+        chart.appendChild(svg("text", {x: String(L - 6), y: String(Y(t) + 4), "text-anchor": "end"}, t.toFixed(2)));
+      });
+      levels.forEach(function (level) {
+        chart.appendChild(svg("line", {x1: String(X(level)), x2: String(X(level)), y1: String(H - B), y2: String(H - B + 4), stroke: "#9aa4ae"}));
+        chart.appendChild(svg("text", {x: String(X(level)), y: String(H - B + 15), "text-anchor": "middle"}, level));
+      });
+      chart.appendChild(svg("text", {x: String((L + W - R) / 2), y: String(H - 2), "text-anchor": "middle"}, "level"));
+      series.forEach(function (x, i) {
+        var pts = [];
+        levels.forEach(function (level) {
+          var v = x.s.famLevel[f + "|" + level];
+          if (v !== undefined) { pts.push([X(level), Y(v), level, v]); }
+        });
+        if (!pts.length) { return; }
+        var chosen = state.record === x.r.id, dim = state.record && !chosen;
+        var g = svg("g", {"data-id": x.r.id, opacity: dim ? "0.35" : "1"});
+        g.appendChild(svg("title", {}, x.r.name));
+        g.appendChild(svg("polyline", {points: pts.map(function (p) { return p[0].toFixed(1) + "," + p[1].toFixed(1); }).join(" "),
+                                       fill: "none", stroke: COLORS[i], "stroke-width": chosen ? "3.5" : "2"}));
+        pts.forEach(function (p) {
+          var c = svg("circle", {cx: p[0].toFixed(1), cy: p[1].toFixed(1), r: chosen ? "4" : "3", fill: COLORS[i]});
+          c.appendChild(svg("title", {}, x.r.name + ": level " + p[2] + ", success " + p[3].toFixed(3)));
+          g.appendChild(c);
+        });
+        g.addEventListener("click", function () { select(x.r.id); });
+        chart.appendChild(g);
+      });
+      fig.appendChild(chart);
+      charts.appendChild(fig);
+    });
+  }
+
+  function fillSelect(id, values, labels) {
+    var select = document.getElementById(id);
+    values.forEach(function (v) { select.appendChild(el("option", {value: v}, labels[v] || v)); });
+    select.addEventListener("change", function () { state[select.name] = select.value; update(); });
+  }
+
+  function readHash() {
+    var params = new URLSearchParams(location.hash.replace(/^#/, ""));
+    ["robot", "backend", "family", "sort", "dir", "record"].forEach(function (k) {
+      if (params.has(k)) { state[k] = params.get(k); }
+    });
+    if (state.robot && DATA.robots.indexOf(state.robot) < 0) { state.robot = ""; }
+    if (state.backend && DATA.backends.indexOf(state.backend) < 0) { state.backend = ""; }
+    if (state.family && DATA.families.indexOf(state.family) < 0) { state.family = ""; }
+    if (state.dir !== "asc" && state.dir !== "desc") { state.dir = "asc"; }
+  }
+
+  function writeHash() {
+    var params = new URLSearchParams();
+    ["robot", "backend", "family", "record"].forEach(function (k) { if (state[k]) { params.set(k, state[k]); } });
+    if (state.sort !== "rank" || state.dir !== "asc") { params.set("sort", state.sort); params.set("dir", state.dir); }
+    var hash = params.toString();
+    try { history.replaceState(null, "", hash ? "#" + hash : location.pathname + location.search); } catch (e) { /* file:// quirks */ }
+  }
+
+  function update() {
+    ["robot", "backend", "family"].forEach(function (k) { document.getElementById("filter-" + k).value = state[k]; });
+    var mainRows = renderTable("main"), partialRows = renderTable("partial");
+    renderDetails();
+    renderCharts(mainRows.slice().sort(function (a, b) { return a.rank - b.rank; }),
+                 partialRows.slice().sort(function (a, b) { return a.rank - b.rank; }));
+    writeHash();
+  }
+
+  document.getElementById("standard-note").textContent =
+    "Records that cover the standard grid: " + DATA.standard + ". Ranked by overall success, then by sim-to-sim gap.";
+  fillSelect("filter-robot", DATA.robots, {});
+  fillSelect("filter-backend", DATA.backends, LABELS);
+  fillSelect("filter-family", DATA.families, {});
+  document.getElementById("filter-reset").addEventListener("click", function () {
+    state.robot = state.backend = state.family = ""; update();
+  });
+  document.getElementById("details-close").addEventListener("click", function () { state.record = ""; update(); });
+  readHash();
+  update();
+  document.body.setAttribute("data-ready", "true");
+})();
+"""

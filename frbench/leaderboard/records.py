@@ -1,0 +1,287 @@
+"""Leaderboard records: building, validating, storing and loading them.
+
+A record (``record_schema_version`` 1, schema ``record-v1.schema.json``) is::
+
+    {"record_schema_version": 1, "id": <sha256 of the results' canonical JSON>,
+     "submission": {name, policy, description, submitter, link, submitted},
+     "track": "main" | "partial", "scores": <recomputed>, "results": <the results, verbatim>}
+
+Records keep the results verbatim, per-episode records included, so anyone can
+re-check them and recompute the id; a full standard-grid record is a few MB.
+The id depends on the results only: the same results cannot be submitted twice
+under another name. Files are created atomically and exclusively (a complete
+temporary file hard-linked to ``records/<id>.json``, which fails if that name
+exists), so concurrent submissions never overwrite or half-write a record.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import math
+import os
+import re
+import tempfile
+import unicodedata
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Iterator
+
+from frbench.errors import FrbenchError, ResultsError
+from frbench.io import sha256_text
+from frbench.leaderboard.jsonfile import MAX_RESULTS_BYTES, canonical_json, pretty_json, read_json_object
+from frbench.leaderboard.paths import RECORDS
+from frbench.leaderboard.results import check_results
+from frbench.leaderboard.scores import record_scores, track_of
+from frbench.schemas import validate
+
+RECORD_SCHEMA_VERSION = 1
+#: Largest record file read (results plus a little).
+MAX_RECORD_BYTES = MAX_RESULTS_BYTES + 1024 * 1024
+
+NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$")
+LINK_RE = re.compile(r"^https?://[A-Za-z0-9.-]+(:[0-9]{1,5})?(/[A-Za-z0-9._~:/?#\[\]@!$&()*+,;=%-]*)?$")
+RECORD_FILE_RE = re.compile(r"^[0-9a-f]{64}\.json$")
+DESCRIPTION_MAX = 280
+SUBMITTER_MAX = 64
+LINK_MAX = 300
+DEFAULT_SUBMITTER = "anonymous"
+
+
+def record_id(results: dict) -> str:
+    """A record's id: the sha256 of its results' canonical JSON."""
+    return sha256_text(canonical_json(results))
+
+
+# --------------------------------------------------------------------------- submission fields
+
+
+def check_name(value: str, label: str = "--name") -> str:
+    if not NAME_RE.match(value):
+        raise ResultsError(
+            f"{label}: {value[:80]!r} is not allowed; use 1-64 letters, digits, '.', '_' or '-', starting with a letter or digit"
+        )
+    return value
+
+
+def check_text(value: str, label: str, limit: int, *, required: bool = False) -> str:
+    """Free text shown on the board: one line, no markup, no control or formatting characters."""
+    if required and not value:
+        raise ResultsError(f"{label}: must not be empty")
+    if len(value) > limit:
+        raise ResultsError(f"{label}: is {len(value)} characters long, above the limit of {limit}")
+    for char in value:
+        if unicodedata.category(char) in ("Cc", "Cf", "Zl", "Zp") or char == "\ufeff":
+            raise ResultsError(f"{label}: control or formatting character U+{ord(char):04X} is not allowed (one line of plain text)")
+        if char in "<>":
+            raise ResultsError(f"{label}: {char!r} is not allowed (plain text only, no markup)")
+    return value
+
+
+def check_link(value: str | None, label: str = "--link") -> str | None:
+    if value is None or value == "":
+        return None
+    if len(value) > LINK_MAX:
+        raise ResultsError(f"{label}: is {len(value)} characters long, above the limit of {LINK_MAX}")
+    if not LINK_RE.match(value):
+        raise ResultsError(
+            f"{label}: {value[:80]!r} is not allowed; give an http:// or https:// URL without spaces, quotes or '<', '>'"
+        )
+    return value
+
+
+def submission_fields(
+    results: dict,
+    *,
+    name: str | None,
+    description: str | None,
+    submitter: str | None,
+    link: str | None,
+    submitted: str,
+) -> dict:
+    """The record's ``submission`` block, checked (labels name the CLI options)."""
+    return {
+        "name": check_name(name if name is not None else results["policy"]["name"]),
+        "policy": results["policy"]["name"],
+        "description": check_text((description or "").strip(), "--description", DESCRIPTION_MAX),
+        "submitter": check_text((submitter or DEFAULT_SUBMITTER).strip(), "--submitter", SUBMITTER_MAX, required=True),
+        "link": check_link((link or "").strip() or None),
+        "submitted": submitted,
+    }
+
+
+# --------------------------------------------------------------------------- records
+
+
+def build_record(results: dict, submission: dict) -> dict:
+    """A complete record for checked ``results`` (see :func:`~frbench.leaderboard.results.check_results`)."""
+    track = track_of(results["cells"])
+    record = {
+        "record_schema_version": RECORD_SCHEMA_VERSION,
+        "id": record_id(results),
+        "submission": submission,
+        "track": track,
+        "scores": record_scores(results["cells"], track),
+        "results": results,
+    }
+    validate(record, "record-v1")
+    return record
+
+
+def record_text(record: dict) -> str:
+    """A record's file content (deterministic)."""
+    return pretty_json(record) + "\n"
+
+
+def _differs(stored: Any, fresh: Any) -> bool:
+    if isinstance(stored, dict) and isinstance(fresh, dict):
+        return stored.keys() != fresh.keys() or any(_differs(stored[k], fresh[k]) for k in stored)
+    if isinstance(stored, (int, float)) and isinstance(fresh, (int, float)) and not isinstance(stored, bool):
+        return not math.isclose(stored, fresh, rel_tol=1e-12, abs_tol=1e-12)
+    return stored != fresh
+
+
+def check_record(record: Any, *, file_name: str | None = None) -> None:
+    """Raise ``ResultsError('field: problem')`` unless ``record`` is a valid record (and is named ``file_name``)."""
+    if not isinstance(record, dict):
+        raise ResultsError("(top level): expected a JSON object")
+    if "record_schema_version" not in record:
+        raise ResultsError(f"record_schema_version: required field is missing; expected {RECORD_SCHEMA_VERSION}")
+    version = record["record_schema_version"]
+    if isinstance(version, bool) or version != RECORD_SCHEMA_VERSION:
+        raise ResultsError(f"record_schema_version: {version!r} is not supported; this frbench reads record_schema_version {RECORD_SCHEMA_VERSION}")
+    validate(record, "record-v1")
+    results = record["results"]
+    try:
+        check_results(results, schema_checked=True)
+    except ResultsError as exc:
+        raise ResultsError(f"results.{exc}") from None
+    expected = record_id(results)
+    if record["id"] != expected:
+        raise ResultsError(f"id: {record['id']} is not the sha256 of the record's results ({expected}); was the record edited?")
+    if file_name is not None and file_name != f"{expected}.json":
+        raise ResultsError(f"file name: a record with id {expected} must be named {expected}.json")
+    submission = record["submission"]
+    check_name(submission["name"], "submission.name")
+    check_text(submission["description"], "submission.description", DESCRIPTION_MAX)
+    check_text(submission["submitter"], "submission.submitter", SUBMITTER_MAX, required=True)
+    check_link(submission["link"], "submission.link")
+    if submission["policy"] != results["policy"]["name"]:
+        raise ResultsError(f"submission.policy: {submission['policy']!r} but results.policy.name is {results['policy']['name']!r}")
+    track = track_of(results["cells"])
+    if record["track"] != track:
+        raise ResultsError(f"track: {record['track']!r} but its cells put it on the {track!r} track")
+    fresh = record_scores(results["cells"], track)
+    if _differs(record["scores"], fresh):
+        raise ResultsError(
+            f"scores: differ from the scores recomputed from results.cells "
+            f"(overall {record['scores']['overall']!r} recorded, {fresh['overall']!r} recomputed)"
+        )
+
+
+def load_record(path: Path) -> dict:
+    """Read and fully check one record file; errors name the file."""
+    record = read_json_object(path, limit=MAX_RECORD_BYTES)
+    try:
+        check_record(record, file_name=path.name)
+    except ResultsError as exc:
+        raise ResultsError(f"{path}: {exc}") from None
+    return record
+
+
+def record_files(root: Path) -> tuple[list[Path], list[Path]]:
+    """(record files, other files) in ``root/records``; ``.gitkeep`` is neither."""
+    folder = root / RECORDS
+    if not folder.is_dir():
+        return [], []
+    records, others = [], []
+    for path in sorted(folder.iterdir()):
+        if path.name == ".gitkeep":
+            continue
+        (records if RECORD_FILE_RE.match(path.name) and path.is_file() else others).append(path)
+    return records, others
+
+
+def load_records(root: Path) -> list[dict]:
+    """Every record in ``root/records``, checked; temporary dot-files of submissions in progress are skipped."""
+    records, _ = record_files(root)
+    return [load_record(path) for path in records]
+
+
+# --------------------------------------------------------------------------- storage
+
+
+class DuplicateRecord(ResultsError):
+    """The same results were already submitted."""
+
+
+@contextlib.contextmanager
+def locked(root: Path) -> Iterator[None]:
+    """Serialize leaderboard writers with an advisory lock on the leaderboard folder itself (no lock file)."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - Windows: exclusive creation still protects records
+        yield
+        return
+    fd = os.open(root, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)  # releases the lock
+
+
+def _fsync_dir(folder: Path) -> None:
+    with contextlib.suppress(OSError):
+        fd = os.open(folder, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+
+
+def create_exclusive(path: Path, text: str) -> None:
+    """Create ``path`` with ``text`` atomically; raise :class:`DuplicateRecord` if it exists.
+
+    The text goes to a temporary file in the same folder, is synced, and is
+    hard-linked to ``path`` (``link`` fails if ``path`` exists, and readers
+    never see a partial file). On file systems without hard links it falls back
+    to ``O_CREAT | O_EXCL``.
+    """
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=".incoming-", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as handle:
+            handle.write(text)
+            handle.flush()
+            os.fchmod(handle.fileno(), 0o644)
+            os.fsync(handle.fileno())
+        try:
+            os.link(tmp, path)
+        except FileExistsError:
+            raise DuplicateRecord(f"{path.name} exists") from None
+        except OSError as exc:
+            if exc.errno not in (errno.EPERM, errno.EOPNOTSUPP, errno.ENOTSUP, errno.EXDEV, errno.EMLINK):
+                raise FrbenchError(f"cannot write {path}: {exc.strerror or exc}") from exc
+            try:
+                out = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+            except FileExistsError:
+                raise DuplicateRecord(f"{path.name} exists") from None
+            with os.fdopen(out, "w", encoding="utf-8") as handle:
+                handle.write(text)
+                handle.flush()
+                os.fsync(handle.fileno())
+    except OSError as exc:
+        raise FrbenchError(f"cannot write {path}: {exc.strerror or exc}") from exc
+    finally:
+        Path(tmp).unlink(missing_ok=True)
+    _fsync_dir(path.parent)
+
+
+@dataclass
+class Submission:
+    """What :func:`~frbench.leaderboard.board.submit` did."""
+
+    record: dict
+    path: Path
+    written: bool

@@ -1,0 +1,132 @@
+"""Leaderboard scores, recomputed from a results object's cells (submitted summaries are never trusted).
+
+Every score is a mean of cell success rates (a cell is one robot x backend x
+terrain x level x seed), so each cell weighs the same:
+
+* ``overall``: over all scored cells; ``per_family`` / ``per_backend`` /
+  ``per_robot``: over the cells of that terrain family / backend / robot;
+* ``sim_to_sim_gap``: for each (robot, terrain, level) that both backends ran,
+  ``|mean over seeds (mujoco) - mean over seeds (pybullet)|``, averaged; null
+  when no (robot, terrain, level) has both backends.
+
+A record whose cells cover the standard grid (``frbench.tasks.protocol``) is on
+the ``main`` track and is scored on the standard grid's cells only, so main
+records are comparable; any other record is ``partial`` and scored on all its
+cells. Ranking: overall success (higher first), then sim-to-sim gap (lower
+first, none last), then submission time, then id.
+
+Means use ``math.fsum`` so they do not depend on the order of the cells.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from typing import Iterable, Mapping, Sequence
+
+from frbench.tasks.protocol import (
+    STANDARD_BACKENDS,
+    STANDARD_LEVELS,
+    STANDARD_ROBOTS,
+    STANDARD_SEEDS,
+    STANDARD_TERRAINS,
+)
+
+#: (robot, backend, terrain, level) -> (sum of the cells' success rates, number of cells).
+Groups = dict[tuple[str, str, str, int], tuple[float, int]]
+
+STANDARD_GRID = frozenset(
+    itertools.product(STANDARD_ROBOTS, STANDARD_BACKENDS, STANDARD_TERRAINS, STANDARD_LEVELS, STANDARD_SEEDS)
+)
+
+
+def cell_key(cell: Mapping) -> tuple:
+    return (cell["robot"], cell["backend"], cell["terrain"], cell["level"], cell["seed"])
+
+
+def track_of(cells: Sequence[Mapping]) -> str:
+    """``main`` when the cells cover the whole standard grid, else ``partial``."""
+    keys = {cell_key(c) for c in cells}
+    return "main" if STANDARD_GRID <= keys else "partial"
+
+
+def scored_cells(cells: Sequence[Mapping], track: str) -> list[Mapping]:
+    """The cells a record is scored on: the standard grid's for main records, all for partial ones."""
+    if track == "main":
+        return [c for c in cells if cell_key(c) in STANDARD_GRID]
+    return list(cells)
+
+
+def groups_of(cells: Iterable[Mapping]) -> Groups:
+    """Aggregate cells per (robot, backend, terrain, level)."""
+    rates: dict[tuple, list[float]] = {}
+    for cell in cells:
+        rates.setdefault((cell["robot"], cell["backend"], cell["terrain"], cell["level"]), []).append(cell["success_rate"])
+    return {key: (math.fsum(values), len(values)) for key, values in sorted(rates.items(), key=lambda kv: _sort_key(kv[0]))}
+
+
+def _sort_key(key: tuple) -> tuple:
+    return tuple((0, v, "") if isinstance(v, int) else (1, 0, v) for v in key)
+
+
+def _mean(parts: Iterable[tuple[float, int]]) -> float | None:
+    parts = list(parts)
+    count = sum(n for _, n in parts)
+    return math.fsum(s for s, _ in parts) / count if count else None
+
+
+def aggregate(groups: Groups, *, robot: str | None = None, backend: str | None = None, terrain: str | None = None) -> dict | None:
+    """Scores over the groups matching the filters; ``None`` if none match."""
+    chosen = {
+        k: v for k, v in groups.items()
+        if (robot is None or k[0] == robot) and (backend is None or k[1] == backend) and (terrain is None or k[2] == terrain)
+    }
+    if not chosen:
+        return None
+
+    def by(position: int) -> dict:
+        names = sorted({k[position] for k in chosen}, key=str)
+        return {name: _mean(v for k, v in chosen.items() if k[position] == name) for name in names}
+
+    per_family_level: dict[str, dict[str, float]] = {}
+    for family in sorted({k[2] for k in chosen}):
+        levels = sorted({k[3] for k in chosen if k[2] == family})
+        per_family_level[family] = {
+            str(level): _mean(v for k, v in chosen.items() if k[2] == family and k[3] == level) for level in levels
+        }
+    gaps = []
+    for robot_, terrain_, level in sorted({(k[0], k[2], k[3]) for k in chosen}, key=str):
+        means = {b: chosen[(robot_, b, terrain_, level)] for b in STANDARD_BACKENDS if (robot_, b, terrain_, level) in chosen}
+        if len(means) == 2:
+            gaps.append(abs(means["mujoco"][0] / means["mujoco"][1] - means["pybullet"][0] / means["pybullet"][1]))
+    return {
+        "overall": _mean(chosen.values()),
+        "per_family": by(2),
+        "per_backend": by(1),
+        "per_robot": by(0),
+        "per_family_level": per_family_level,
+        "sim_to_sim_gap": math.fsum(gaps) / len(gaps) if gaps else None,
+        "cells": sum(n for _, n in chosen.values()),
+    }
+
+
+def record_scores(cells: Sequence[Mapping], track: str) -> dict:
+    """The ``scores`` stored in a record."""
+    scored = scored_cells(cells, track)
+    full = aggregate(groups_of(scored))
+    assert full is not None  # results always have cells
+    return {
+        "overall": full["overall"],
+        "per_family": full["per_family"],
+        "per_backend": full["per_backend"],
+        "per_robot": full["per_robot"],
+        "sim_to_sim_gap": full["sim_to_sim_gap"],
+        "cells": full["cells"],
+        "episodes": sum(c["episodes"] for c in scored),
+    }
+
+
+def rank_key(scores: Mapping, submitted: str, record_id: str) -> tuple:
+    """Sort key: overall success descending, gap ascending (none last), then time, then id."""
+    gap = scores.get("sim_to_sim_gap")
+    return (-scores["overall"], gap is None, gap if gap is not None else 0.0, submitted, record_id)

@@ -1,0 +1,54 @@
+"""The policy interface every recovery policy implements.
+
+A policy gets the robot spec when a batch of episodes starts and then, every
+control step, a dict of proprioceptive arrays (N rows; see
+`frbench.tasks.observations`), and returns joint targets q* [rad] of shape
+(N, n_joints) in the spec's canonical order. Policies that think in offsets
+(the paper's q* = q̊ + a) add the default pose themselves.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+
+from frbench.errors import PolicyError
+from frbench.robots.spec import RobotSpec
+
+
+class Policy(Protocol):
+    """A recovery policy. ``checkpoint`` is the file it was loaded from (None if built in)."""
+
+    name: str
+    checkpoint: Path | None
+
+    def supports(self, spec: RobotSpec) -> bool:
+        """Whether the policy can drive ``spec``."""
+
+    def reset(self, spec: RobotSpec, num_envs: int) -> None:
+        """Start ``num_envs`` new episodes of ``spec``."""
+
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        """Joint targets (N, n_joints) [rad] for the observation dict."""
+
+
+def checked_actions(policy: Policy, actions, num_envs: int, n_joints: int) -> np.ndarray:
+    """``actions`` as float64 (N, n_joints), or a `PolicyError` naming the policy and the problem."""
+    try:
+        array = np.asarray(actions, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise PolicyError(f"policy {policy.name!r} returned actions that are not numbers ({exc})") from None
+    if array.shape != (num_envs, n_joints):
+        raise PolicyError(
+            f"policy {policy.name!r} returned actions of shape {array.shape}, expected ({num_envs}, {n_joints})"
+        )
+    bad = ~np.isfinite(array)
+    if bad.any():
+        env, joint = np.argwhere(bad)[0]
+        kind = "NaN" if np.isnan(array[env, joint]) else "infinite"
+        raise PolicyError(
+            f"policy {policy.name!r} returned {kind} targets ({int(bad.sum())} values; first at environment {env}, joint {joint})"
+        )
+    return array

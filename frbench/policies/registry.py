@@ -1,0 +1,62 @@
+"""Find policies by name, checkpoint path, or plugin.
+
+``load_policy(name_or_path)``:
+
+1. a built-in name (`BUILTIN_POLICIES`, imported on first use);
+2. an existing file or run folder → :func:`frbench.policies.checkpoint.load_checkpoint_policy`;
+3. a plugin: an entry point of group ``frbench.policies`` loading to a
+   zero-argument callable that returns a policy (read only on a miss, or
+   when listing).
+"""
+
+from __future__ import annotations
+
+import importlib
+from importlib.metadata import entry_points
+from pathlib import Path
+
+from frbench.errors import PolicyError, unknown_name
+
+ENTRY_POINT_GROUP = "frbench.policies"
+
+#: Built-in policies: name → "module:Class" (a zero-argument constructor).
+BUILTIN_POLICIES = {
+    "zero": "frbench.policies.zero:ZeroPolicy",
+    "scripted": "frbench.policies.scripted:ScriptedPolicy",
+}
+
+
+def _construct(target: str):
+    module, _, name = target.partition(":")
+    return getattr(importlib.import_module(module), name)()
+
+
+def plugin_policies() -> dict:
+    """Installed plugins: name → entry point."""
+    return {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP)}
+
+
+def policy_names() -> list[str]:
+    """Built-in and plugin policy names."""
+    return [*BUILTIN_POLICIES, *(n for n in plugin_policies() if n not in BUILTIN_POLICIES)]
+
+
+def load_policy(name_or_path: str):
+    """The policy named ``name_or_path`` or stored at that path."""
+    if name_or_path in BUILTIN_POLICIES:
+        return _construct(BUILTIN_POLICIES[name_or_path])
+    path = Path(name_or_path)
+    if path.exists():
+        from frbench.policies.checkpoint import load_checkpoint_policy
+
+        return load_checkpoint_policy(path)
+    plugins = plugin_policies()
+    if name_or_path in plugins:
+        policy = plugins[name_or_path].load()()
+        for attribute in ("name", "reset", "act", "supports"):
+            if not hasattr(policy, attribute):
+                raise PolicyError(f"plugin policy {name_or_path!r} has no {attribute!r}; see frbench.policies.base.Policy")
+        return policy
+    if "/" in name_or_path or name_or_path.endswith((".pt", ".onnx")):
+        raise PolicyError(f"{name_or_path}: no such checkpoint file or run folder")
+    raise unknown_name("policy", name_or_path, policy_names())

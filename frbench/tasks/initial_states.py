@@ -1,0 +1,191 @@
+"""The protocol's fallen starting states, drawn identically for every backend.
+
+Each episode's start is a pure function of (protocol version, robot, terrain
+family, level, seed, episode index): a policy always faces the same starts,
+and MuJoCo and PyBullet get the same drawn configuration (they then settle it
+for `SETTLE_SECONDS` each, under their own physics, before t = 0).
+
+Draw (docs/protocol.md): the fall kind is one of supine, prone, left side,
+right side and a uniformly random orientation, with `FALL_WEIGHTS`; yaw is uniform (flat) or
+the terrain's spawn yaw ± 0.3 rad; joints are uniform within their limits,
+redrawn while the legs intersect each other (up to `MAX_REDRAWS` times). The
+robot is then lifted so its lowest collision point is `DROP_HEIGHT` above the
+highest terrain point within its reach.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from frbench.robots.kinematics import link_poses, lowest_point
+from frbench.robots.sim_urdf import sim_robot_file
+from frbench.robots.spec import RobotSpec
+from frbench.robots.urdf_tree import parse_urdf
+from frbench.tasks.protocol import PROTOCOL_VERSION
+
+FALL_KINDS = ("supine", "prone", "left_side", "right_side", "random")
+#: Probability of each fall kind. Prone starts are rare: from the belly a robot
+#: that just pushes to its standing pose gets up, so they test little.
+FALL_WEIGHTS = (0.3, 0.1, 0.2, 0.2, 0.2)
+#: Side starts lean this far [rad] past 90° towards the back, so the settle
+#: leaves them on their side or back rather than tipping them onto their feet.
+SIDE_LEAN = 0.35
+#: Height [m] of the lowest point above the terrain when dropped.
+DROP_HEIGHT = 0.05
+#: Settling time [s] before t = 0, joints held softly at the drawn angles.
+SETTLE_SECONDS = 1.0
+#: Gain scale during settling ("held softly").
+SETTLE_GAIN_SCALE = 0.3
+#: Yaw jitter [rad] around a terrain's spawn yaw.
+YAW_JITTER = 0.3
+#: Joint draws tried before giving up on a self-intersection-free one.
+MAX_REDRAWS = 50
+
+
+@dataclass
+class FallenStarts:
+    """N drawn starts. base_pos (N, 3) [m], base_quat (N, 4) wxyz, q (N, n_joints) [rad], kinds (N,)."""
+
+    base_pos: np.ndarray
+    base_quat: np.ndarray
+    q: np.ndarray
+    kinds: list[str]
+
+
+def episode_rng(robot: str, family: str, level: int, seed: int, episode: int) -> np.random.Generator:
+    """The generator of one episode's start: a pure function of the protocol version and the cell."""
+    key = f"{PROTOCOL_VERSION}|{robot}|{family}|{int(level)}|{int(seed)}|{int(episode)}"
+    words = np.frombuffer(hashlib.sha256(key.encode()).digest(), dtype=np.uint32)
+    return np.random.default_rng(np.random.SeedSequence(words.tolist()))
+
+
+def _quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    w1, x1, y1, z1 = a
+    w2, x2, y2, z2 = b
+    return np.array([
+        w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+        w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+        w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+        w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
+    ])
+
+
+def _axis_quat(axis: int, angle: float) -> np.ndarray:
+    quat = np.zeros(4)
+    quat[0] = np.cos(angle / 2)
+    quat[1 + axis] = np.sin(angle / 2)
+    return quat
+
+
+def quat_to_matrix(quat: np.ndarray) -> np.ndarray:
+    """Rotation matrix (3, 3) of a unit quaternion (w, x, y, z)."""
+    w, x, y, z = quat / np.linalg.norm(quat)
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+def fall_orientation(kind: str, robot_kind: str, yaw: float, rng: np.random.Generator) -> np.ndarray:
+    """Base quaternion (w, x, y, z) of a fall kind, then yawed by ``yaw`` [rad].
+
+    Quadrupeds lie on their back by rolling π about x; humanoids by pitching
+    −π/2 about y (face up). Sides roll π/2 + `SIDE_LEAN` about x. A tilt of up
+    to 0.2 rad is added to the named kinds.
+    """
+    if kind == "random":
+        quat = rng.normal(size=4)
+        return quat / np.linalg.norm(quat)
+    lying = {
+        ("quadruped", "supine"): _axis_quat(0, np.pi),
+        ("quadruped", "prone"): _axis_quat(0, 0.0),
+        ("humanoid", "supine"): _axis_quat(1, -np.pi / 2),
+        ("humanoid", "prone"): _axis_quat(1, np.pi / 2),
+    }
+    if kind in ("left_side", "right_side"):
+        roll = np.pi / 2 + SIDE_LEAN
+        base = _axis_quat(0, -roll if kind == "left_side" else roll)
+    else:
+        base = lying[(robot_kind, kind)]
+    tilt = _quat_multiply(_axis_quat(0, rng.uniform(-0.2, 0.2)), _axis_quat(1, rng.uniform(-0.2, 0.2)))
+    return _quat_multiply(_axis_quat(2, yaw), _quat_multiply(base, tilt))
+
+
+@lru_cache(maxsize=32)
+def _self_collision_model(spec: RobotSpec):
+    """MuJoCo model and data of the robot alone, with the backends' self-collision exclusions."""
+    import mujoco
+
+    from frbench.backends.mujoco_model import build_model, joint_addresses
+    from frbench.terrains import make_terrain
+
+    model = build_model(spec, make_terrain("flat", 1, 0))
+    return model, mujoco.MjData(model), joint_addresses(model, spec)[0]
+
+
+def self_intersects(spec: RobotSpec, q: np.ndarray) -> bool:
+    """Whether two links of the robot overlap at joint angles ``q`` (MuJoCo's collision detection)."""
+    import mujoco
+
+    model, data, qadr = _self_collision_model(spec)
+    data.qpos[:] = model.qpos0
+    data.qpos[2] = 100.0  # far above the floor: only self-contacts remain
+    data.qpos[qadr] = q
+    mujoco.mj_kinematics(model, data)
+    mujoco.mj_collision(model, data)
+    return bool(np.any(data.contact.dist[: data.ncon] < 0))
+
+
+@lru_cache(maxsize=32)
+def _tree(spec: RobotSpec):
+    return parse_urdf(sim_robot_file(spec).path)
+
+
+def lowest_offset_and_reach(spec: RobotSpec, quat: np.ndarray, q: np.ndarray) -> tuple[float, float]:
+    """(lowest collision point z relative to the base [m], horizontal reach [m]) of a configuration."""
+    tree = _tree(spec)
+    poses = link_poses(tree, dict(zip(spec.joint_names, q)))
+    rotation = np.eye(4)
+    rotation[:3, :3] = quat_to_matrix(quat)
+    world = {name: rotation @ pose for name, pose in poses.items()}
+    lowest = lowest_point(tree, world, tree.links)
+    reach = max(np.linalg.norm(pose[:2, 3]) for pose in world.values()) + 0.15
+    return lowest, reach
+
+
+def draw_start(spec: RobotSpec, terrain, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
+    """One fallen start on ``terrain``: (base_pos (3,), base_quat (4,), q (n_joints,), kind)."""
+    from frbench.terrains import support_height
+
+    kind = FALL_KINDS[rng.choice(len(FALL_KINDS), p=FALL_WEIGHTS)]
+    if terrain.family == "flat":
+        yaw = rng.uniform(-np.pi, np.pi)
+    else:
+        yaw = terrain.spawn_yaw + rng.uniform(-YAW_JITTER, YAW_JITTER)
+    quat = fall_orientation(kind, spec.kind, yaw, rng)
+    q = rng.uniform(spec.joint_lower, spec.joint_upper)
+    for _ in range(MAX_REDRAWS):
+        if not self_intersects(spec, q):
+            break
+        q = rng.uniform(spec.joint_lower, spec.joint_upper)
+    lowest, reach = lowest_offset_and_reach(spec, quat, q)
+    x, y = terrain.spawn_xy
+    ground = support_height(terrain, (x, y), reach)
+    z = ground - lowest + DROP_HEIGHT
+    return np.array([x, y, z]), quat, q, kind
+
+
+def draw_starts(spec: RobotSpec, terrain, family: str, level: int, seed: int, episodes) -> FallenStarts:
+    """The starts of ``episodes`` (indices) in one (robot, terrain, level, seed) cell."""
+    rows = [draw_start(spec, terrain, episode_rng(spec.name, family, level, seed, e)) for e in episodes]
+    return FallenStarts(
+        base_pos=np.array([r[0] for r in rows]),
+        base_quat=np.array([r[1] for r in rows]),
+        q=np.array([r[2] for r in rows]),
+        kinds=[r[3] for r in rows],
+    )

@@ -1,0 +1,71 @@
+"""What a policy sees: proprioception as named arrays, plus the privileged view for training.
+
+Proprioception (the paper's o_t, 42 values for a quadruped), each (N, k):
+
+* ``base_angvel`` [rad/s], body frame (3);
+* ``projected_gravity`` the unit gravity direction in the body frame (3):
+  (0, 0, −1) when upright, (0, 0, +1) on the back;
+* ``joint_pos`` [rad] (n_joints), canonical order;
+* ``joint_vel`` [rad/s] (n_joints);
+* ``previous_action`` the joint targets q* [rad] sent at the previous step
+  (the default pose at t = 0) (n_joints).
+
+Optional sensor noise (off by default) is uniform with the scales of
+`NOISE_SCALES`, drawn from a generator passed in.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from frbench.backends.base import RobotState
+
+PROPRIOCEPTION_KEYS = ("base_angvel", "projected_gravity", "joint_pos", "joint_vel", "previous_action")
+#: Half-widths of uniform sensor noise, per key (legged_gym's values).
+NOISE_SCALES = {"base_angvel": 0.2, "projected_gravity": 0.05, "joint_pos": 0.01, "joint_vel": 1.5}
+
+
+def rotate_to_body(quat: np.ndarray, vectors: np.ndarray) -> np.ndarray:
+    """World vectors (N, 3) expressed in the body frames of quaternions (N, 4) wxyz."""
+    w, xyz = quat[:, :1], quat[:, 1:]
+    # v_body = R^T v = v - 2 w (u × v) + 2 u × (u × v), with u = xyz (rotation by the conjugate)
+    t = 2.0 * np.cross(xyz, vectors)
+    return vectors - w * t + np.cross(xyz, t)
+
+
+def projected_gravity(quat: np.ndarray) -> np.ndarray:
+    """Unit gravity direction in the body frame, (N, 3)."""
+    down = np.zeros((len(quat), 3))
+    down[:, 2] = -1.0
+    return rotate_to_body(quat, down)
+
+
+def proprioception(
+    state: RobotState, previous_action: np.ndarray, noise_rng: np.random.Generator | None = None
+) -> dict[str, np.ndarray]:
+    """The policy's observation dict (see the module docstring)."""
+    obs = {
+        "base_angvel": state.base_angvel.copy(),
+        "projected_gravity": projected_gravity(state.base_quat),
+        "joint_pos": state.q.copy(),
+        "joint_vel": state.qd.copy(),
+        "previous_action": np.array(previous_action, dtype=float),
+    }
+    if noise_rng is not None:
+        for key, scale in NOISE_SCALES.items():
+            obs[key] = obs[key] + noise_rng.uniform(-scale, scale, size=obs[key].shape)
+    return obs
+
+
+def flatten(obs: dict[str, np.ndarray], default_pose: np.ndarray) -> np.ndarray:
+    """The paper's o_t (N, 6 + 3·n_joints): [ω, g, q − q̊, q̇, a_{t−1} − q̊] (42 for a quadruped)."""
+    return np.concatenate(
+        [
+            obs["base_angvel"],
+            obs["projected_gravity"],
+            obs["joint_pos"] - default_pose,
+            obs["joint_vel"],
+            obs["previous_action"] - default_pose,
+        ],
+        axis=1,
+    )
