@@ -7,8 +7,8 @@ joints, 0.5 m up) and tracks random joint targets:
   into frbench's conventions, which every step does for divergence checks);
 * frbench step+contacts: the same plus ``backend.contacts()`` (what the task
   calls every control step for rewards and success);
-* raw MuJoCo: ``Batch.step(nstep=substeps)`` on the same model and batch size,
-  with the same targets written to ``ctrl`` (MuJoCo's position actuators are the PD);
+* raw MuJoCo: the same batch, ``substeps`` × (the same PD torque in numpy,
+  ``Batch.step(nstep=1)``) — the simulator loop the backend wraps;
 * raw PyBullet: the same clients, ``getJointStates`` → PD torque →
   ``setJointMotorControlArray`` → ``stepSimulation`` for each physics step.
 
@@ -21,34 +21,15 @@ Run: ``python benchmarks/throughput.py [--seconds 1] [--repeats 5]``.
 from __future__ import annotations
 
 import argparse
-import time
 
 import numpy as np
 import pybullet as p
+from common import fallen, median_rates
 
 from frbench.backends import make_backend
-from frbench.backends.base import RobotState
 from frbench.robots import get_robot
-from frbench.robots.check import random_configurations
 
 SIZES = {"mujoco": 64, "pybullet": 4}
-
-
-def _fallen(spec, n, rng):
-    pos, quat, q = random_configurations(spec, rng, n)
-    pos[:, :2] = 0.0
-    pos[:, 2] = 0.5
-    return RobotState.at_rest(pos, quat, q)
-
-
-def _timed(step, seconds: float) -> float:
-    """Calls of ``step`` per second over about ``seconds``."""
-    step()
-    count, start = 0, time.perf_counter()
-    while time.perf_counter() - start < seconds:
-        step()
-        count += 1
-    return count / (time.perf_counter() - start)
 
 
 def measure(robot: str, backend_name: str, seconds: float, repeats: int) -> dict[str, float]:
@@ -58,7 +39,7 @@ def measure(robot: str, backend_name: str, seconds: float, repeats: int) -> dict
     rng = np.random.default_rng(0)
     backend = make_backend(backend_name, spec, n)
     targets = rng.uniform(spec.joint_lower, spec.joint_upper, size=(n, spec.n_joints))
-    start = _fallen(spec, n, rng)
+    start = fallen(spec, n, rng)
 
     def frbench_step():
         backend.step(targets)
@@ -67,14 +48,17 @@ def measure(robot: str, backend_name: str, seconds: float, repeats: int) -> dict
         backend.step(targets)
         backend.contacts()
 
+    limits, kp, kd = np.asarray(spec.torque_limits), np.asarray(spec.kp), np.asarray(spec.kd)
     if backend_name == "mujoco":
-        ctrl = backend.batch.bind("ctrl")
+        batch = backend.batch
+        ctrl, qpos, qvel = batch.bind("ctrl"), batch.bind("qpos"), batch.bind("qvel")
+        qadr, dadr = backend._qadr, backend._dadr
 
         def raw_step():
-            ctrl[:] = targets
-            backend.batch.step(nstep=backend.substeps)
+            for _ in range(backend.substeps):
+                ctrl[:] = np.clip(kp * (targets - qpos[:, qadr]) - kd * qvel[:, dadr], -limits, limits)
+                batch.step(nstep=1)
     else:
-        limits, kp, kd = np.asarray(spec.torque_limits), np.asarray(spec.kp), np.asarray(spec.kd)
 
         def raw_step():
             for i, sim in enumerate(backend.sims):
@@ -88,13 +72,9 @@ def measure(robot: str, backend_name: str, seconds: float, repeats: int) -> dict
                     c.stepSimulation()
 
     loops = {"step": frbench_step, "step+contacts": frbench_step_contacts, "raw": raw_step}
-    rates: dict[str, list[float]] = {name: [] for name in loops}
-    for _ in range(repeats):
-        for name, loop in loops.items():
-            backend.reset(np.arange(n), start)
-            rates[name].append(_timed(loop, seconds) * n)
+    rates = median_rates(loops, lambda: backend.reset(np.arange(n), start), seconds, repeats)
     backend.close()
-    return {name: float(np.median(values)) for name, values in rates.items()}
+    return {name: rate * n for name, rate in rates.items()}
 
 
 def main() -> None:

@@ -29,6 +29,7 @@ knows which simulator runs):
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
+from functools import lru_cache
 from typing import Protocol
 
 import numpy as np
@@ -178,8 +179,9 @@ def divergence_mask(state: RobotState) -> np.ndarray:
     return ~np.all(np.isfinite(stacked) & (np.abs(stacked) < DIVERGENCE_LIMIT), axis=1)
 
 
+@lru_cache(maxsize=64)
 def group_index(link_names: tuple[str, ...], groups) -> list[np.ndarray]:
-    """For each group, the indices of its links in ``link_names``."""
+    """For each group, the indices of its links in ``link_names`` (cached: called every step)."""
     where = {name: i for i, name in enumerate(link_names)}
     return [np.array([where[l] for l in group.links]) for group in groups]
 
@@ -187,15 +189,11 @@ def group_index(link_names: tuple[str, ...], groups) -> list[np.ndarray]:
 def summarize_contacts(spec: RobotSpec, link_names: tuple[str, ...], link_force: np.ndarray) -> Contacts:
     """`Contacts` from per-link net forces (N, n_links, 3) — the same rule for every backend."""
     norm = np.linalg.norm(link_force, axis=-1)
-    group_sum = lambda groups: np.stack(  # noqa: E731
-        [link_force[:, idx].sum(axis=1) for idx in group_index(link_names, groups)], axis=1
-    )
-    contact_groups = group_index(link_names, spec.contact_groups)
-    group_contact = np.stack([np.any(norm[:, idx] > CONTACT_FORCE_THRESHOLD, axis=1) for idx in contact_groups], axis=1)
-    feet = np.array([link_names.index(f) for f in spec.foot_links])
+    touching = norm > CONTACT_FORCE_THRESHOLD
+    group_contact = np.stack([touching[:, idx].any(axis=1) for idx in group_index(link_names, spec.contact_groups)], axis=1)
+    feet, non_foot = _feet_and_rest(link_names, spec.foot_links)
     foot_force = norm[:, feet]
-    knee = group_sum(spec.knee_groups)
-    non_foot = np.setdiff1d(np.arange(len(link_names)), feet)
+    knee = np.stack([link_force[:, idx].sum(axis=1) for idx in group_index(link_names, spec.knee_groups)], axis=1)
     return Contacts(
         link_force=link_force,
         group_contact=group_contact,
@@ -204,6 +202,12 @@ def summarize_contacts(spec: RobotSpec, link_names: tuple[str, ...], link_force:
         knee_force_xy=np.linalg.norm(knee[..., :2], axis=-1),
         body_force_max=norm[:, non_foot].max(axis=1) if non_foot.size else np.zeros(len(link_force)),
     )
+
+
+@lru_cache(maxsize=64)
+def _feet_and_rest(link_names: tuple[str, ...], foot_links: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
+    feet = np.array([link_names.index(f) for f in foot_links])
+    return feet, np.setdiff1d(np.arange(len(link_names)), feet)
 
 
 def check_targets(joint_targets: np.ndarray, num_envs: int, n_joints: int) -> np.ndarray:

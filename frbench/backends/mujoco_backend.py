@@ -41,7 +41,15 @@ class MujocoBackend:
 
     name = "mujoco"
 
-    def __init__(self, spec: RobotSpec, num_envs: int, terrain=None, nthread: int | None = None):
+    def __init__(self, spec: RobotSpec, num_envs: int, terrain=None, nthread: int | None = None, variants=None):
+        """N simulations of ``spec`` on ``terrain`` (flat if None).
+
+        ``variants``: optional (specs, assignment) for morphology randomisation —
+        robots with the same links and joints as ``spec`` (other dimensions and
+        masses); simulation i runs ``specs[assignment[i]]``. Per-simulation
+        friction and payload are then fixed by the variant's compiled model
+        (``set_params`` changes gains and motor strength only).
+        """
         from frbench.terrains import make_terrain
 
         self.spec = spec
@@ -51,41 +59,42 @@ class MujocoBackend:
         self.physics_dt = float(self.model.opt.timestep)
         self.substeps = int(round(CONTROL_DT / self.physics_dt))
         self.batch = mjbatch.Batch(self.model, self.num_envs, nthread or default_threads(), persistent=True)
+        self.variant_models = None
+        if variants is not None:
+            specs, assignment = variants
+            self.variant_models = [build_model(s, self.terrain) for s in specs]
+            self.batch.set_models([self.variant_models[k] for k in np.asarray(assignment)])
         self._qadr, self._dadr = joint_addresses(self.model, spec)
         self.link_names = sim_robot_file(spec).links
         self._link_body = np.array([self.model.body(name).id for name in self.link_names])
         self._qpos = self.batch.bind("qpos")
         self._qvel = self.batch.bind("qvel")
         self._ctrl = self.batch.bind("ctrl")
-        self._actuator_force = self.batch.bind("actuator_force")
         self._cfrc_ext = self.batch.bind("cfrc_ext")
         self._terrain_geoms = np.array(
             [g for g in range(self.model.ngeom) if self.model.geom_bodyid[g] == 0], dtype=int
         )
         self._root_body = self._link_body[0]
         self._base_mass = float(self.model.body_mass[self._root_body])
-        self._gear = None
+        self._limits = np.asarray(spec.torque_limits)
+        self._tau = np.zeros((self.num_envs, spec.n_joints))
         self.diverged = np.zeros(self.num_envs, dtype=bool)
         self.params = PhysicsParams.nominal(spec, self.num_envs)
 
     # ------------------------------------------------------------------ params
     def set_params(self, params: PhysicsParams) -> None:
         """Per-simulation gains, motor strength, terrain friction and payload."""
-        gain = self.batch.expand("actuator_gainprm")
-        bias = self.batch.expand("actuator_biasprm")
-        gear = self.batch.expand("actuator_gear")
+        self.params = params
+        if self.variant_models is not None:
+            return  # friction and payload are the variants' own
+        payload = np.zeros(self.num_envs) if params.payload is None else params.payload
+        if np.all(params.friction == 1.0) and np.all(payload == 0.0) and self.batch.expanded("body_mass") is None:
+            return  # the compiled model already holds these
         friction = self.batch.expand("geom_friction")
         mass = self.batch.expand("body_mass")
-        gain[:, :, 0] = params.kp
-        bias[:, :, 1] = -params.kp
-        bias[:, :, 2] = -params.kd
-        gear[:, :, 0] = params.motor_strength
         friction[:, self._terrain_geoms, 0] = params.friction[:, None]
-        payload = np.zeros(self.num_envs) if params.payload is None else params.payload
         mass[:, self._root_body] = self._base_mass + payload
         self.batch.set_const()
-        self._gear = params.motor_strength
-        self.params = params
 
     # ------------------------------------------------------------------ state
     def reset(self, ids, state: RobotState) -> None:
@@ -104,25 +113,32 @@ class MujocoBackend:
         qvel[:, self._dadr] = state.qd
         self._qpos[ids] = qpos
         self._qvel[ids] = qvel
-        self._ctrl[ids] = state.q
+        self._ctrl[ids] = 0.0
+        self._tau[ids] = 0.0
         warnings_before = self.batch.warning[ids][:, _INSTABILITY, 0].sum(axis=1)
         self.batch.forward(ids)
         bad = self.batch.warning[ids][:, _INSTABILITY, 0].sum(axis=1) > warnings_before
         self.diverged[ids] = bad | divergence_mask(state)
 
     def step(self, joint_targets) -> None:
-        """One control period: ``substeps`` physics steps of PD tracking ``joint_targets``."""
+        """One control period: ``substeps`` × (PD torque in numpy, one MuJoCo step)."""
         targets = check_targets(joint_targets, self.num_envs, self.spec.n_joints)
-        alive = np.flatnonzero(~self.diverged)
-        if alive.size == 0:
-            return
-        self._ctrl[:] = np.where(self.diverged[:, None], self._ctrl, targets)
+        kp, kd, strength = self.params.kp, self.params.kd, self.params.motor_strength
+        limits, low = self._limits, -self._limits
         warnings_before = self.batch.warning[:, _INSTABILITY, 0].sum(axis=1)
-        ids = None if alive.size == self.num_envs else alive.astype(np.int32)
-        try:
-            self.batch.step(ids, nstep=self.substeps, stage=mujoco.mjtStage.mjSTAGE_VEL)
-        except mjbatch.SimulationError as exc:
-            self.diverged[np.asarray(exc.ids)] = True
+        for _ in range(self.substeps):  # the hot loop: keep it lean
+            any_diverged = self.diverged.any()
+            ids = np.flatnonzero(~self.diverged).astype(np.int32) if any_diverged else None
+            if ids is not None and ids.size == 0:
+                break
+            q, qd = self._qpos[:, self._qadr], self._qvel[:, self._dadr]
+            tau = strength * np.minimum(np.maximum(kp * (targets - q) - kd * qd, low), limits)
+            self._ctrl[:] = np.where(self.diverged[:, None], 0.0, tau) if any_diverged else tau
+            try:
+                self.batch.step(ids, nstep=1)
+            except mjbatch.SimulationError as exc:
+                self.diverged[np.asarray(exc.ids)] = True
+        self._tau = np.array(self._ctrl)
         self.diverged |= self.batch.warning[:, _INSTABILITY, 0].sum(axis=1) > warnings_before
         self.diverged |= divergence_mask(self._raw_state())
 
@@ -140,8 +156,7 @@ class MujocoBackend:
     def state(self) -> RobotState:
         """State of every simulation (root frame, canonical joints, applied torques)."""
         state = self._raw_state()
-        gear = self._gear if self._gear is not None else 1.0
-        state.tau = self._actuator_force * gear
+        state.tau = self._tau.copy()
         return state
 
     def mass_properties(self) -> tuple[np.ndarray, np.ndarray]:

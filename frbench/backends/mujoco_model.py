@@ -9,10 +9,9 @@ Pinocchio load). What this adds, and why:
 * each body's collisions with all its ancestors excluded (MuJoCo only excludes
   parent/child; Bullet's ``URDF_USE_SELF_COLLISION_EXCLUDE_ALL_PARENTS`` does this),
   and the pairs of :func:`~frbench.robots.sim_urdf.self_collision_exclusions`;
-* one position actuator per joint in canonical order: force
-  ``kp (ctrl − q) − kd qd`` clipped to ± the torque limit, times ``gear``
-  (the motor strength) — the backends' identical PD, evaluated by MuJoCo at
-  every physics step;
+* one motor (torque) actuator per joint in canonical order, unclipped: the
+  backend computes the PD torque in numpy at every physics step, with the
+  same formula as the PyBullet backend (and per-simulation gains);
 * an accelerometer on the root so that MuJoCo computes ``cfrc_ext`` (the net
   contact force on every body) at every step;
 * an elliptic friction cone with impratio 100 (see ``build_spec``);
@@ -60,19 +59,18 @@ def build_spec(spec: RobotSpec, terrain, friction: float = 1.0) -> mujoco.MjSpec
     for geom in mj.geoms:
         geom.friction = [1.0, 0.005, 0.0001]
         geom.condim = 3
-    for name, kp, kd, limit in zip(spec.joint_names, spec.kp, spec.kd, spec.torque_limits):
+    for name in spec.joint_names:
         joint = mj.joint(name)
         joint.actfrclimited = mujoco.mjtLimited.mjLIMITED_FALSE
         joint.damping = np.zeros(3)
         joint.armature, joint.frictionloss = 0.0, 0.0
         actuator = mj.add_actuator()
-        actuator.name = f"pd_{name}"
+        actuator.name = f"motor_{name}"
         actuator.target = name
         actuator.trntype = mujoco.mjtTrn.mjTRN_JOINT
-        actuator.set_to_position(kp=kp, kv=kd)
-        actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
-        actuator.forcerange = [-limit, limit]
+        actuator.set_to_motor()
         actuator.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+        actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_FALSE
     add_to_mjspec(mj, terrain, friction)
     light = mj.worldbody.add_light()
     light.pos, light.dir = [0, 0, 6], [0, 0, -1]
