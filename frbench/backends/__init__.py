@@ -21,6 +21,13 @@ def backend_class(name: str):
     return getattr(importlib.import_module(module), cls)
 
 
-def make_backend(name: str, spec, num_envs: int, terrain=None):
-    """A backend ``name`` running ``num_envs`` simulations of ``spec`` on ``terrain`` (flat if None)."""
-    return backend_class(name)(spec, num_envs, terrain=terrain)
+def make_backend(name: str, spec, num_envs: int, terrain=None, variants=None):
+    """A backend ``name`` running ``num_envs`` simulations of ``spec`` on ``terrain`` (flat if None).
+
+    ``variants`` (specs, assignment, frictions, payloads): per-simulation robots
+    of the same structure (morphology randomisation); see `MujocoBackend`.
+    """
+    cls = backend_class(name)
+    if variants is None:
+        return cls(spec, num_envs, terrain=terrain)
+    return cls(spec, num_envs, terrain=terrain, variants=variants)

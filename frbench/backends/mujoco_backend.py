@@ -44,11 +44,12 @@ class MujocoBackend:
     def __init__(self, spec: RobotSpec, num_envs: int, terrain=None, nthread: int | None = None, variants=None):
         """N simulations of ``spec`` on ``terrain`` (flat if None).
 
-        ``variants``: optional (specs, assignment) for morphology randomisation —
-        robots with the same links and joints as ``spec`` (other dimensions and
-        masses); simulation i runs ``specs[assignment[i]]``. Per-simulation
-        friction and payload are then fixed by the variant's compiled model
-        (``set_params`` changes gains and motor strength only).
+        ``variants``: optional (specs, assignment, frictions, payloads) for
+        morphology randomisation — robots with the same links and joints as
+        ``spec`` (other dimensions and masses); simulation i runs
+        ``specs[assignment[i]]``, whose compiled model also fixes its terrain
+        friction and root payload [kg] (``set_params`` then changes gains and
+        motor strength only; MuJoCo cannot expand fields of caller models).
         """
         from frbench.terrains import make_terrain
 
@@ -61,8 +62,12 @@ class MujocoBackend:
         self.batch = mjbatch.Batch(self.model, self.num_envs, nthread or default_threads(), persistent=True)
         self.variant_models = None
         if variants is not None:
-            specs, assignment = variants
-            self.variant_models = [build_model(s, self.terrain) for s in specs]
+            specs, assignment, frictions, payloads = variants
+            self.variant_models = []
+            for variant, friction, payload in zip(specs, frictions, payloads):
+                model = build_model(variant, self.terrain, friction=float(friction))
+                model.body_mass[model.body(sim_robot_file(variant).links[0]).id] += payload
+                self.variant_models.append(model)
             self.batch.set_models([self.variant_models[k] for k in np.asarray(assignment)])
         self._qadr, self._dadr = joint_addresses(self.model, spec)
         self.link_names = sim_robot_file(spec).links

@@ -97,7 +97,8 @@ class PybulletBackend:
 
     name = "pybullet"
 
-    def __init__(self, spec: RobotSpec, num_envs: int, terrain=None):
+    def __init__(self, spec: RobotSpec, num_envs: int, terrain=None, variants=None):
+        """N simulations of ``spec`` on ``terrain`` (flat if None); ``variants`` as for `MujocoBackend`."""
         from frbench.terrains import make_terrain
 
         self.spec = spec
@@ -105,9 +106,11 @@ class PybulletBackend:
         self.terrain = terrain if terrain is not None else make_terrain("flat", 1, 0)
         self.physics_dt = float(spec.physics_dt)
         self.substeps = int(round(CONTROL_DT / self.physics_dt))
-        sim = sim_robot_file(spec)
-        self.link_names = sim.links
-        self.sims = [_Simulation(spec, str(sim.path), self.terrain, self.link_names) for _ in range(self.num_envs)]
+        self.link_names = sim_robot_file(spec).links
+        specs, assignment = ([spec], np.zeros(self.num_envs, dtype=int)) if variants is None else variants[:2]
+        self.sims = [
+            _Simulation(specs[k], str(sim_robot_file(specs[k]).path), self.terrain, self.link_names) for k in assignment
+        ]
         self.diverged = np.zeros(self.num_envs, dtype=bool)
         self._tau = np.zeros((self.num_envs, spec.n_joints))
         self._limits = np.asarray(spec.torque_limits)

@@ -37,14 +37,32 @@ def plugin_policies() -> dict:
 
 
 def policy_names() -> list[str]:
-    """Built-in and plugin policy names."""
-    return [*BUILTIN_POLICIES, *(n for n in plugin_policies() if n not in BUILTIN_POLICIES)]
+    """Built-in, shipped (when present) and plugin policy names."""
+    shipped = [n for n in SHIPPED_CHECKPOINTS if shipped_checkpoint(n).is_file()]
+    builtin = [*BUILTIN_POLICIES, *shipped]
+    return [*builtin, *(n for n in plugin_policies() if n not in builtin)]
+
+
+#: Trained policies shipped with frbench: name → checkpoint file inside the package.
+SHIPPED_CHECKPOINTS = {"frnet": "checkpoints/frnet.pt"}
+
+
+def shipped_checkpoint(name: str) -> Path:
+    """Path of a shipped checkpoint (it may not exist yet in a development checkout)."""
+    return Path(__file__).resolve().parent / SHIPPED_CHECKPOINTS[name]
 
 
 def load_policy(name_or_path: str):
     """The policy named ``name_or_path`` or stored at that path."""
     if name_or_path in BUILTIN_POLICIES:
         return _construct(BUILTIN_POLICIES[name_or_path])
+    if name_or_path in SHIPPED_CHECKPOINTS:
+        path = shipped_checkpoint(name_or_path)
+        if not path.is_file():
+            raise PolicyError(f"policy {name_or_path!r}: its checkpoint {path} is not in this installation")
+        from frbench.policies.checkpoint import load_checkpoint_policy
+
+        return load_checkpoint_policy(path)
     path = Path(name_or_path)
     if path.exists():
         from frbench.policies.checkpoint import load_checkpoint_policy

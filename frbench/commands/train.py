@@ -1,0 +1,70 @@
+"""``frbench train``: train a recovery policy with rsl-rl's PPO (FR-Net, its ablations, baselines)."""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+from pathlib import Path
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add ``train`` to the CLI."""
+    p = sub.add_parser("train", help="train a recovery policy (resumable)")
+    p.add_argument("--method", default="frnet", help="frnet, frnet-no-mass, frnet-no-contact, frnet-no-est, dreamriser, rma, ppo")
+    p.add_argument("--robots", default=None, help="train on one named robot instead of randomised morphologies")
+    p.add_argument("--steps", type=float, default=None, help="env-step budget (default 20e6; with --resume: extend the budget)")
+    p.add_argument("--envs", type=int, default=256, help="parallel environments")
+    p.add_argument("--backend", default="mujoco", help="mujoco (default) or pybullet")
+    p.add_argument("--terrains", default=None, help="comma-separated families (default: all seven)")
+    p.add_argument("--morphologies", type=int, default=32, help="distinct sampled robots per batch")
+    p.add_argument("--no-curriculum", action="store_true", help="uniform random levels instead of the curriculum")
+    p.add_argument("--no-stability", action="store_true", help="drop the stability reward terms (ablation)")
+    p.add_argument("--episode-steps", type=int, default=350, help="training episode length (paper: 350)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--checkpoint-every", type=int, default=20, help="iterations between checkpoints")
+    p.add_argument("--out", type=Path, default=None, help="run folder (default runs/<method>)")
+    p.add_argument("--resume", type=Path, default=None, help="continue the run in this folder")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    """Create (or resume) the run and train it to its budget."""
+    from frbench.errors import FrbenchError
+    from frbench.terrains import FAMILIES
+    from frbench.training.env import TrainEnvConfig, training_reward_config
+    from frbench.training.methods import METHODS
+    from frbench.training.rewards import STABILITY_TERMS
+    from frbench.training.run import TrainingRun
+
+    if args.resume:
+        run_ = TrainingRun(args.resume, total_steps=int(args.steps) if args.steps else None, resume=True,
+                           checkpoint_every=args.checkpoint_every)
+    else:
+        if args.method not in METHODS:
+            from frbench.errors import unknown_name
+
+            raise unknown_name("training method", args.method, METHODS)
+        families = tuple(f.strip() for f in args.terrains.split(",")) if args.terrains else FAMILIES
+        for family in families:
+            if family not in FAMILIES:
+                from frbench.errors import unknown_name
+
+                raise unknown_name("terrain", family, FAMILIES)
+        args.steps = 20e6 if args.steps is None else args.steps
+        if args.steps <= 0 or args.envs < 1:
+            raise FrbenchError("--steps and --envs must be positive")
+        reward = training_reward_config()
+        if args.no_stability:
+            reward = reward.without(STABILITY_TERMS, "stability-reward ablation (--no-stability)")
+        env_cfg = TrainEnvConfig(
+            num_envs=args.envs, backend=args.backend, robot=args.robots, num_morphologies=args.morphologies,
+            episode_steps=args.episode_steps, families=families, curriculum=not args.no_curriculum,
+            reward=reward, seed=args.seed,
+        )
+        out = args.out or Path("runs") / args.method
+        command = "frbench " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+        run_ = TrainingRun(out, args.method, env_cfg, int(args.steps), args.checkpoint_every, command)
+    run_.train()
+    print(f"trained {run_.env_steps / 1e6:.2f}M env steps in {run_.wall / 60:.1f} min; policy at {run_.out / 'policy.pt'}")
+    return 0

@@ -1,0 +1,1 @@
+"""FR-Net training: rewards, domain randomisation and the terrain curriculum."""

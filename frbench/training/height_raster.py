@@ -1,0 +1,51 @@
+"""Fast terrain heights for the critic's 187-point scan: one raster per grid tile.
+
+The exact `height_at` costs about 0.3 s for 512 × 187 points on the training
+world; the scan is privileged information for the critic, so a 4 cm raster of
+each tile (built once with `height_at`) and a nearest-cell lookup suffice.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from frbench.terrains import SCAN_POINTS, height_at
+
+RESOLUTION = 0.04  # m
+HALF_SIZE = 3.2  # m around each tile's spawn
+
+
+class HeightRaster:
+    """Heights around every tile of a `TerrainGrid`, looked up per environment."""
+
+    def __init__(self, grid, tile_keys: list[tuple[int, int]]):
+        self.tile_keys = tile_keys
+        self.index = {key: i for i, key in enumerate(tile_keys)}
+        n = int(round(2 * HALF_SIZE / RESOLUTION)) + 1
+        axis = np.linspace(-HALF_SIZE, HALF_SIZE, n)
+        gx, gy = np.meshgrid(axis, axis, indexing="ij")
+        self.centres = np.zeros((len(tile_keys), 2))
+        self.heights = np.zeros((len(tile_keys), n, n), dtype=np.float32)
+        for i, key in enumerate(tile_keys):
+            x, y, _ = grid.spawn(*key)
+            self.centres[i] = (x, y)
+            points = np.stack([gx + x, gy + y], axis=-1).reshape(-1, 2)
+            self.heights[i] = height_at(grid.world, points).reshape(n, n)
+        self.floor = float(grid.world.floor_z)
+        self.n = n
+
+    def lookup(self, tile: np.ndarray, xy: np.ndarray) -> np.ndarray:
+        """Heights [m] at world points ``xy`` (N, P, 2) for environments on tiles ``tile`` (N,) (row indices)."""
+        rel = (xy - self.centres[tile][:, None, :] + HALF_SIZE) / RESOLUTION
+        ij = np.rint(rel).astype(np.int64)
+        inside = np.all((ij >= 0) & (ij < self.n), axis=-1)
+        ij = np.clip(ij, 0, self.n - 1)
+        heights = self.heights[tile[:, None], ij[..., 0], ij[..., 1]]
+        return np.where(inside, heights, self.floor)
+
+    def scan(self, tile: np.ndarray, base_pos: np.ndarray, yaw: np.ndarray) -> np.ndarray:
+        """The 187-point scan (N, 187): base z − terrain height at the yaw-frame grid (see `height_scan`)."""
+        c, s = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
+        px, py = SCAN_POINTS[:, 0][None], SCAN_POINTS[:, 1][None]
+        xy = np.stack([base_pos[:, :1] + c * px - s * py, base_pos[:, 1:2] + s * px + c * py], axis=-1)
+        return base_pos[:, 2:3] - self.lookup(tile, xy)

@@ -1,0 +1,410 @@
+"""FR-Net's reward terms (paper, Table "Reward terms for quadrupedal recovery").
+
+Every term is a function of one :class:`RewardInputs` (numpy arrays with N rows,
+SI units) returning the **unweighted** term, shape (N,), float64.
+:func:`compute_rewards` weights them with a :class:`RewardConfig` and sums.
+
+====================  =====================================================  ==========
+term                  value (unweighted)                                     paper weight
+====================  =====================================================  ==========
+base_orientation      g_x² + g_y²                                            −0.5
+upright_orientation   exp(−(g_z + 1)² / (2 ε²))                              6.0
+target_posture        exp(−Σ_j (q_j − q_stand,j)²) if |g_z + 1| < ε else 0   4.0
+feet_contact          number of feet in contact                              0.3
+body_contact          1 if any non-foot link touches anything else 0         −0.2
+safety_force          Σ_knees ‖f^xy‖ [N]                                     −1e−2
+body_bias             clip(‖p^xy − p^xy_init‖, 0, 4) [m]                     −0.1
+position_limits       number of joints outside [q_lower, q_upper]            −1.0
+velocity_limit        Σ_j max(|q̇_j| − 0.8, 0) [rad/s]                         −0.1
+joint_acceleration    Σ_j ((q̇_j − q̇_prev,j) / dt)² [rad²/s⁴]                 −2.5e−6
+joint_velocity        Σ_j q̇_j² [rad²/s²]                                     −1e−2
+action_smoothing      Σ_j (a_t,j − a_t−1,j)²                                 −0.01
+joint_torques         Σ_j τ_j² [N²·m²]                                       −5e−4
+====================  =====================================================  ==========
+
+``g`` is the projected gravity, the unit gravity direction in the body frame
+((0, 0, −1) when upright, (0, 0, +1) on the back).
+
+Readings where the paper is ambiguous
+-------------------------------------
+* **ε** (:data:`DEFAULT_EPSILON` = 0.4). The paper writes the upright term with
+  σ in the text and ε in the equation and the table, and gates the target
+  posture with "|g_z + 1| < ε"; one ε serves both, as in the equation. With
+  ε = 0.4 the upright term is 1 upright, 0.61 at 53° of tilt (the edge of the
+  posture gate, g_z = −0.6), 0.04 lying on the side (g_z = 0) and
+  exp(−4/0.32) ≈ 3.7e−6 on the back, so the gradient spans the whole roll from
+  the side to upright, and the posture term switches on below ≈ 53° of tilt.
+* **velocity_limit**. The paper writes max(|q̇| − 0.8, 0). Two readings exist:
+  0.8 rad/s absolute (literal) or 0.8 × each joint's velocity limit (legged_gym's
+  ``soft_dof_vel_limit`` convention). frbench takes the **literal** reading:
+  ``RewardConfig.velocity_threshold`` defaults to 0.8 rad/s, summed over
+  joints. For the other reading pass per-joint thresholds
+  (``velocity_threshold=tuple(0.8 * limit for limit in joint_velocity_limits)``);
+  the value is a threshold in rad/s either way. With Go2's limits (30.1 and
+  15.7 rad/s) the second reading would almost never fire.
+* The squared terms (``g_xy²``, ``q̇²``, ``τ²``, ``(a_t − a_t−1)²``, ``q̈²``) are
+  squared norms summed over components; ``(q − q_stand)²`` inside the exponential
+  too.
+* **Per step, scaled by dt.** The paper trains in Isaac Gym with rsl-rl, whose
+  legged_gym environments multiply every weight by the control period
+  (0.02 s). The table's weights read like such weights, and rsl-rl's PPO
+  hyperparameters (value clipping 0.2, no reward normalisation) are tuned for
+  that scale (returns of tens, not thousands). So ``RewardConfig.scale_by_dt``
+  defaults to True: the reward of one control step is Σ_i w_i · r_i · dt. Set
+  it to False to get Σ_i w_i · r_i. The scale does not change the optimal
+  policy. legged_gym's ``only_positive_rewards`` clipping is not in the paper
+  and not applied.
+* A weight set to a value other than the paper's, or a term dropped, must come
+  with a reason (``RewardConfig.overrides_reason``), so logs keep the paper's
+  value visible: :meth:`RewardConfig.deviations`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import Callable, Mapping
+
+import numpy as np
+
+__all__ = [
+    "DEFAULT_EPSILON",
+    "DEFAULT_VELOCITY_THRESHOLD",
+    "PAPER_WEIGHTS",
+    "REWARD_TERMS",
+    "STABILITY_TERMS",
+    "RewardConfig",
+    "RewardInputs",
+    "action_smoothing",
+    "base_orientation",
+    "body_bias",
+    "body_contact",
+    "compute_rewards",
+    "feet_contact",
+    "joint_acceleration",
+    "joint_torques",
+    "joint_velocity",
+    "position_limits",
+    "safety_force",
+    "stability_terms",
+    "target_posture",
+    "upright_orientation",
+    "velocity_limit",
+]
+
+#: ε of the upright Gaussian and of the target-posture gate (see the module docstring).
+DEFAULT_EPSILON = 0.4
+#: Joint speed above which ``velocity_limit`` penalises [rad/s] (literal reading of the paper).
+DEFAULT_VELOCITY_THRESHOLD = 0.8
+#: Upper clip of the body-bias displacement [m] (paper).
+BODY_BIAS_CLIP_M = 4.0
+
+#: The paper's weights, exactly as in its table. The only place these numbers live.
+PAPER_WEIGHTS: dict[str, float] = {
+    "base_orientation": -0.5,
+    "upright_orientation": 6.0,
+    "target_posture": 4.0,
+    "feet_contact": 0.3,
+    "body_contact": -0.2,
+    "safety_force": -1.0e-2,
+    "body_bias": -0.1,
+    "position_limits": -1.0,
+    "velocity_limit": -0.1,
+    "joint_acceleration": -2.5e-6,
+    "joint_velocity": -1.0e-2,
+    "action_smoothing": -0.01,
+    "joint_torques": -5.0e-4,
+}
+
+#: The paper's "Stability Control" terms, which an ablation drops.
+STABILITY_TERMS: tuple[str, ...] = ("safety_force", "body_bias")
+stability_terms = STABILITY_TERMS
+
+
+@dataclass
+class RewardInputs:
+    """What the reward terms read at one control step; arrays with N rows, SI units.
+
+    Attributes:
+        projected_gravity: (N, 3) unit gravity direction in the body frame; (0, 0, −1) upright.
+        q: (N, J) joint angles [rad].
+        qd: (N, J) joint velocities [rad/s].
+        qd_prev: (N, J) joint velocities one control step earlier [rad/s].
+        tau: (N, J) applied torques [N·m].
+        action: (N, J) policy action a_t (offset units, whatever the policy emits).
+        action_prev: (N, J) the previous action a_{t−1}.
+        q_stand: (J,) or (N, J) target standing posture [rad].
+        q_lower, q_upper: (J,) or (N, J) joint position limits [rad].
+        foot_contact: (N, F) bool, each foot touches something.
+        body_contact: (N,) bool, any non-foot link touches anything.
+        knee_force_xy: (N, K) horizontal contact force norm on each knee group [N].
+        base_xy: (N, 2) base position [m].
+        init_xy: (N, 2) base position at the episode start [m].
+        dt: control period [s].
+    """
+
+    projected_gravity: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    qd_prev: np.ndarray
+    tau: np.ndarray
+    action: np.ndarray
+    action_prev: np.ndarray
+    q_stand: np.ndarray
+    q_lower: np.ndarray
+    q_upper: np.ndarray
+    foot_contact: np.ndarray
+    body_contact: np.ndarray
+    knee_force_xy: np.ndarray
+    base_xy: np.ndarray
+    init_xy: np.ndarray
+    dt: float = 0.02
+
+    @property
+    def num_envs(self) -> int:
+        """N."""
+        return int(np.shape(self.projected_gravity)[0])
+
+    def check(self) -> None:
+        """Raise ``ValueError`` naming the first array whose shape does not fit (N, J) etc."""
+        n = self.num_envs
+        if np.shape(self.projected_gravity) != (n, 3):
+            raise ValueError(f"projected_gravity has shape {np.shape(self.projected_gravity)}, expected (N, 3)")
+        j = np.shape(self.q)[-1] if np.ndim(self.q) == 2 else -1
+        for name in ("q", "qd", "qd_prev", "tau", "action", "action_prev"):
+            if np.shape(getattr(self, name)) != (n, j):
+                raise ValueError(f"{name} has shape {np.shape(getattr(self, name))}, expected ({n}, {j})")
+        for name in ("q_stand", "q_lower", "q_upper"):
+            if np.shape(getattr(self, name)) not in ((j,), (n, j)):
+                raise ValueError(f"{name} has shape {np.shape(getattr(self, name))}, expected ({j},) or ({n}, {j})")
+        for name, shape in (("body_contact", (n,)), ("base_xy", (n, 2)), ("init_xy", (n, 2))):
+            if np.shape(getattr(self, name)) != shape:
+                raise ValueError(f"{name} has shape {np.shape(getattr(self, name))}, expected {shape}")
+        for name in ("foot_contact", "knee_force_xy"):
+            value = getattr(self, name)
+            if np.ndim(value) != 2 or np.shape(value)[0] != n:
+                raise ValueError(f"{name} has shape {np.shape(value)}, expected ({n}, k)")
+        if not (math.isfinite(self.dt) and self.dt > 0):
+            raise ValueError(f"dt must be positive, got {self.dt!r}")
+
+
+def _sum_sq(x: np.ndarray) -> np.ndarray:
+    """Row-wise sum of squares of an (N, k) array, float64 (N,)."""
+    x = np.asarray(x, dtype=np.float64)
+    return np.einsum("ij,ij->i", x, x)
+
+
+# --------------------------------------------------------------------------- orientation and posture
+
+
+def base_orientation(x: RewardInputs) -> np.ndarray:
+    """g_x² + g_y²: 0 upright or on the back, 1 on the side. Paper weight −0.5."""
+    return _sum_sq(np.asarray(x.projected_gravity)[:, :2])
+
+
+def upright_orientation(x: RewardInputs, epsilon: float = DEFAULT_EPSILON) -> np.ndarray:
+    """exp(−(g_z + 1)² / (2 ε²)): 1 upright, exp(−2/ε²) on the back. Paper weight 6.0."""
+    gz = np.asarray(x.projected_gravity, dtype=np.float64)[:, 2]
+    return np.exp(-((gz + 1.0) ** 2) / (2.0 * epsilon**2))
+
+
+def target_posture(x: RewardInputs, epsilon: float = DEFAULT_EPSILON) -> np.ndarray:
+    """exp(−Σ_j (q_j − q_stand,j)²) [rad²] where |g_z + 1| < ε, else 0. Paper weight 4.0."""
+    gz = np.asarray(x.projected_gravity, dtype=np.float64)[:, 2]
+    close = np.exp(-_sum_sq(np.asarray(x.q, dtype=np.float64) - x.q_stand))
+    return np.where(np.abs(gz + 1.0) < epsilon, close, 0.0)
+
+
+# --------------------------------------------------------------------------- contacts
+
+
+def feet_contact(x: RewardInputs) -> np.ndarray:
+    """Number of feet in contact, 0..F. Paper weight 0.3."""
+    return np.asarray(x.foot_contact, dtype=bool).sum(axis=1).astype(np.float64)
+
+
+def body_contact(x: RewardInputs) -> np.ndarray:
+    """1 if any non-foot link touches anything, else 0. Paper weight −0.2."""
+    return np.asarray(x.body_contact, dtype=bool).astype(np.float64)
+
+
+# --------------------------------------------------------------------------- stability
+
+
+def safety_force(x: RewardInputs) -> np.ndarray:
+    """Σ over knee groups of the horizontal contact force norm [N]. Paper weight −1e−2."""
+    return np.asarray(x.knee_force_xy, dtype=np.float64).sum(axis=1)
+
+
+def body_bias(x: RewardInputs) -> np.ndarray:
+    """Horizontal distance of the base from its start, clipped to [0, 4] m. Paper weight −0.1."""
+    d = np.asarray(x.base_xy, dtype=np.float64) - np.asarray(x.init_xy, dtype=np.float64)
+    return np.clip(np.sqrt(_sum_sq(d)), 0.0, BODY_BIAS_CLIP_M)
+
+
+# --------------------------------------------------------------------------- motion constraints
+
+
+def position_limits(x: RewardInputs) -> np.ndarray:
+    """Number of joints strictly outside [q_lower, q_upper]. Paper weight −1.0."""
+    q = np.asarray(x.q, dtype=np.float64)
+    return ((q > x.q_upper) | (q < x.q_lower)).sum(axis=1).astype(np.float64)
+
+
+def velocity_limit(x: RewardInputs, threshold: float | np.ndarray = DEFAULT_VELOCITY_THRESHOLD) -> np.ndarray:
+    """Σ_j max(|q̇_j| − threshold_j, 0) [rad/s]; threshold scalar or (J,). Paper weight −0.1.
+
+    The default 0.8 rad/s is the paper's formula read literally (module docstring).
+    """
+    excess = np.abs(np.asarray(x.qd, dtype=np.float64)) - np.asarray(threshold, dtype=np.float64)
+    return np.maximum(excess, 0.0).sum(axis=1)
+
+
+def joint_acceleration(x: RewardInputs) -> np.ndarray:
+    """Σ_j ((q̇_j − q̇_prev,j) / dt)² [rad²/s⁴], finite difference over one control step. Paper weight −2.5e−6."""
+    return _sum_sq((np.asarray(x.qd, dtype=np.float64) - x.qd_prev) / x.dt)
+
+
+def joint_velocity(x: RewardInputs) -> np.ndarray:
+    """Σ_j q̇_j² [rad²/s²]. Paper weight −1e−2."""
+    return _sum_sq(x.qd)
+
+
+def action_smoothing(x: RewardInputs) -> np.ndarray:
+    """Σ_j (a_t,j − a_t−1,j)² (action units²). Paper weight −0.01."""
+    return _sum_sq(np.asarray(x.action, dtype=np.float64) - x.action_prev)
+
+
+def joint_torques(x: RewardInputs) -> np.ndarray:
+    """Σ_j τ_j² [N²·m²]. Paper weight −5e−4."""
+    return _sum_sq(x.tau)
+
+
+#: Term name → function of the inputs (parameterised terms at their defaults).
+REWARD_TERMS: dict[str, Callable[[RewardInputs], np.ndarray]] = {
+    "base_orientation": base_orientation,
+    "upright_orientation": upright_orientation,
+    "target_posture": target_posture,
+    "feet_contact": feet_contact,
+    "body_contact": body_contact,
+    "safety_force": safety_force,
+    "body_bias": body_bias,
+    "position_limits": position_limits,
+    "velocity_limit": velocity_limit,
+    "joint_acceleration": joint_acceleration,
+    "joint_velocity": joint_velocity,
+    "action_smoothing": action_smoothing,
+    "joint_torques": joint_torques,
+}
+
+# Terms that take a parameter from the config: name → config → keyword arguments.
+_TERM_KWARGS: dict[str, Callable[["RewardConfig"], dict]] = {
+    "upright_orientation": lambda c: {"epsilon": c.epsilon},
+    "target_posture": lambda c: {"epsilon": c.epsilon},
+    "velocity_limit": lambda c: {"threshold": c.velocity_threshold},
+}
+
+
+# --------------------------------------------------------------------------- config and total
+
+
+@dataclass(frozen=True)
+class RewardConfig:
+    """Which terms count and how much.
+
+    Attributes:
+        weights: term name → weight; a term missing here is not computed
+            (ablation). Defaults to :data:`PAPER_WEIGHTS`.
+        epsilon: ε of the upright Gaussian and the posture gate [-] (g_z units).
+        velocity_threshold: joint speed above which ``velocity_limit`` penalises
+            [rad/s], a scalar or one value per joint.
+        scale_by_dt: multiply every weighted term by ``inputs.dt`` (legged_gym's
+            convention; see the module docstring).
+        overrides_reason: term name → why its weight differs from the paper's
+            (or why it is dropped). Required for every deviation, refused for a
+            term that does not deviate.
+    """
+
+    weights: Mapping[str, float] = field(default_factory=lambda: dict(PAPER_WEIGHTS))
+    epsilon: float = DEFAULT_EPSILON
+    velocity_threshold: float | tuple[float, ...] = DEFAULT_VELOCITY_THRESHOLD
+    scale_by_dt: bool = True
+    overrides_reason: Mapping[str, str] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        weights = {str(k): float(v) for k, v in dict(self.weights).items()}
+        reasons = {str(k): str(v) for k, v in dict(self.overrides_reason).items()}
+        object.__setattr__(self, "weights", weights)
+        object.__setattr__(self, "overrides_reason", reasons)
+        if not isinstance(self.velocity_threshold, (int, float)):
+            object.__setattr__(self, "velocity_threshold", tuple(float(v) for v in self.velocity_threshold))
+        unknown = sorted(set(weights) - set(REWARD_TERMS))
+        if unknown:
+            raise ValueError(f"unknown reward terms {unknown}; known: {', '.join(REWARD_TERMS)}")
+        bad = [k for k, v in weights.items() if not math.isfinite(v)]
+        if bad:
+            raise ValueError(f"reward weights must be finite: {bad}")
+        if not (math.isfinite(self.epsilon) and self.epsilon > 0):
+            raise ValueError(f"epsilon must be positive, got {self.epsilon!r}")
+        deviating = {name for name, w in PAPER_WEIGHTS.items() if weights.get(name) != w}
+        missing = sorted(deviating - set(reasons))
+        if missing:
+            raise ValueError(
+                f"weights of {missing} differ from the paper's ({', '.join(f'{m}={PAPER_WEIGHTS[m]}' for m in missing)}); "
+                "give a reason in overrides_reason"
+            )
+        needless = sorted(set(reasons) - deviating)
+        if needless:
+            raise ValueError(f"overrides_reason names {needless}, whose weights equal the paper's")
+
+    def deviations(self) -> dict[str, tuple[float, float | None, str]]:
+        """Term → (paper weight, weight used or None if dropped, reason), for every deviation."""
+        return {
+            name: (PAPER_WEIGHTS[name], self.weights.get(name), self.overrides_reason[name])
+            for name in PAPER_WEIGHTS
+            if name in self.overrides_reason
+        }
+
+    def without(self, names: tuple[str, ...] | list[str], reason: str) -> "RewardConfig":
+        """A copy with terms ``names`` dropped, each recorded with ``reason``."""
+        unknown = sorted(set(names) - set(REWARD_TERMS))
+        if unknown:
+            raise ValueError(f"unknown reward terms {unknown}")
+        weights = {k: v for k, v in self.weights.items() if k not in names}
+        reasons = {**self.overrides_reason, **{n: reason for n in names}}
+        return replace(self, weights=weights, overrides_reason=reasons)
+
+    def with_weight(self, name: str, weight: float, reason: str) -> "RewardConfig":
+        """A copy with one weight changed (``reason`` recorded unless it is the paper's value)."""
+        weights = {**self.weights, name: float(weight)}
+        reasons = dict(self.overrides_reason)
+        if PAPER_WEIGHTS.get(name) == float(weight):
+            reasons.pop(name, None)
+        else:
+            reasons[name] = reason
+        return replace(self, weights=weights, overrides_reason=reasons)
+
+
+def compute_rewards(inputs: RewardInputs, config: RewardConfig | None = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The reward of one control step for N environments.
+
+    Args:
+        inputs: the step's signals (shapes checked).
+        config: weights and parameters; default: the paper's.
+
+    Returns:
+        (total (N,), terms) where ``terms`` maps each term in ``config.weights``
+        to its weighted contribution (N,) — multiplied by ``inputs.dt`` when
+        ``config.scale_by_dt`` — and ``total`` is their sum.
+    """
+    config = RewardConfig() if config is None else config
+    inputs.check()
+    scale = inputs.dt if config.scale_by_dt else 1.0
+    total = np.zeros(inputs.num_envs)
+    terms: dict[str, np.ndarray] = {}
+    for name, weight in config.weights.items():
+        kwargs = _TERM_KWARGS[name](config) if name in _TERM_KWARGS else {}
+        value = REWARD_TERMS[name](inputs, **kwargs) * (weight * scale)
+        terms[name] = value
+        total += value
+    return total, terms

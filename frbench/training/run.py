@@ -1,0 +1,203 @@
+"""A training run: rsl-rl's `OnPolicyRunner` on the recovery env, checkpointed and resumable.
+
+A run folder ``runs/NAME/`` holds:
+
+* ``config.json``: method, env config, rsl-rl config, step budget, seed, command;
+* ``runner.pt``: rsl-rl's full training state (models, optimisers) — for ``--resume``;
+* ``state.pt``: frbench's state (iterations, env steps, wall-clock, curriculum,
+  random generator) — for ``--resume``;
+* ``policy.pt``: the frbench policy checkpoint (`frbench-policy-v1`, loads with
+  ``torch.load(weights_only=True)``): actor weights incl. normalisers and the
+  estimator, the resolved configs, the robot/action conventions;
+* ``progress.json``: one row per checkpoint (env steps, wall-clock, success
+  rates), from which ``curve.png`` is drawn;
+* TensorBoard event files.
+
+Every file is written atomically, so a run killed at any point resumes from
+its last checkpoint: ``frbench train --resume runs/NAME``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from frbench.errors import FrbenchError
+from frbench.io import atomic_write_text
+from frbench.policies.checkpoint import CHECKPOINT_FORMAT
+
+RUNNER_FILE, STATE_FILE, POLICY_FILE, CONFIG_FILE, PROGRESS_FILE = "runner.pt", "state.pt", "policy.pt", "config.json", "progress.json"
+
+
+def _atomic_torch_save(obj, path: Path) -> None:
+    import torch
+
+    tmp = path.with_name(f".{path.name}.tmp")
+    torch.save(obj, tmp)
+    os.replace(tmp, path)
+
+
+def _env_cfg_to_dict(cfg) -> dict:
+    out = {}
+    for key, value in dataclasses.asdict(cfg).items():
+        out[key] = list(value) if isinstance(value, tuple) else value
+    reward = cfg.reward
+    out["reward"] = {"weights": dict(reward.weights), "epsilon": reward.epsilon,
+                     "scale_by_dt": reward.scale_by_dt, "overrides_reason": dict(reward.overrides_reason)}
+    return out
+
+
+def env_cfg_from_dict(data: dict):
+    """A `TrainEnvConfig` from its JSON form."""
+    from frbench.training.env import TrainEnvConfig
+    from frbench.training.rewards import RewardConfig
+
+    data = dict(data)
+    reward = data.pop("reward")
+    data["families"] = tuple(data["families"])
+    return TrainEnvConfig(**data, reward=RewardConfig(**reward))
+
+
+class TrainingRun:
+    """Create or resume a run and train it to its step budget."""
+
+    def __init__(self, out: Path, method: str | None = None, env_cfg=None, total_steps: int | None = None,
+                 checkpoint_every: int = 20, command: str = "", resume: bool = False):
+        import torch
+
+        from frbench.training.env import RecoveryTrainingEnv
+        from frbench.training.methods import make_train_cfg
+
+        torch.set_num_threads(1)
+        self.out = Path(out)
+        if resume:
+            config_path = self.out / CONFIG_FILE
+            if not config_path.is_file():
+                raise FrbenchError(f"--resume {self.out}: no {CONFIG_FILE} there; is it a training run folder?")
+            config = json.loads(config_path.read_text())
+            method, env_cfg = config["method"], env_cfg_from_dict(config["env"])
+            total_steps = total_steps or config["total_steps"]
+            train_cfg = config["train_cfg"]
+        else:
+            if (self.out / CONFIG_FILE).exists():
+                raise FrbenchError(f"--out {self.out}: a run is already there; use --resume {self.out} or another name")
+            train_cfg = make_train_cfg(method)
+            config = {"method": method, "env": _env_cfg_to_dict(env_cfg), "train_cfg": train_cfg,
+                      "total_steps": total_steps, "command": command}
+            self.out.mkdir(parents=True, exist_ok=True)
+            atomic_write_text(self.out / CONFIG_FILE, json.dumps(config, indent=1) + "\n")
+        self.config, self.method, self.total_steps = config, method, int(total_steps)
+        self.checkpoint_every = checkpoint_every
+        torch.manual_seed(env_cfg.seed)
+        self.env = RecoveryTrainingEnv(env_cfg)
+        from rsl_rl.runners import OnPolicyRunner
+
+        self.runner = OnPolicyRunner(self.env, json.loads(json.dumps(train_cfg)), log_dir=str(self.out), device="cpu")
+        self.steps_per_iteration = self.env.num_envs * train_cfg["num_steps_per_env"]
+        self.iteration, self.env_steps, self.wall = 0, 0, 0.0
+        self.progress: list[dict] = []
+        if resume and (self.out / RUNNER_FILE).is_file():
+            self._load_state()
+
+    # ------------------------------------------------------------------ persistence
+    def _load_state(self) -> None:
+        import torch
+
+        self.runner.load(str(self.out / RUNNER_FILE))
+        state = torch.load(self.out / STATE_FILE, weights_only=False)
+        self.iteration, self.env_steps, self.wall = state["iteration"], state["env_steps"], state["wall"]
+        self.env.curriculum.load_state_dict(state["curriculum"])
+        self.env.rng.bit_generator.state = state["rng"]
+        self.progress = json.loads((self.out / PROGRESS_FILE).read_text()) if (self.out / PROGRESS_FILE).is_file() else []
+        self.runner.current_learning_iteration = self.iteration
+
+    def save(self) -> None:
+        """Write runner, state, policy and progress (each atomically)."""
+        import torch
+
+        self.runner.current_learning_iteration = self.iteration
+        tmp = self.out / f".{RUNNER_FILE}.tmp"
+        self.runner.save(str(tmp))
+        os.replace(tmp, self.out / RUNNER_FILE)
+        _atomic_torch_save({"iteration": self.iteration, "env_steps": self.env_steps, "wall": self.wall,
+                            "curriculum": self.env.curriculum.state_dict(), "rng": self.env.rng.bit_generator.state},
+                           self.out / STATE_FILE)
+        actor = self.runner.alg.get_policy()
+        _atomic_torch_save(policy_checkpoint(self.method, self.config, actor, self.iteration, self.env_steps, self.wall),
+                           self.out / POLICY_FILE)
+        atomic_write_text(self.out / PROGRESS_FILE, json.dumps(self.progress, indent=1) + "\n")
+        for old in self.out.glob("model_*.pt"):  # rsl-rl's own per-call saves; runner.pt supersedes them
+            old.unlink(missing_ok=True)
+
+    # ------------------------------------------------------------------ training
+    def train(self, progress_bar: bool = True) -> None:
+        """Train until ``total_steps`` env steps, checkpointing every ``checkpoint_every`` iterations."""
+        from tqdm import tqdm
+
+        total_iterations = math.ceil(self.total_steps / self.steps_per_iteration)
+        bar = tqdm(total=total_iterations, initial=self.iteration, unit="it", disable=not progress_bar, dynamic_ncols=True)
+        while self.iteration < total_iterations:
+            chunk = min(self.checkpoint_every, total_iterations - self.iteration)
+            start = time.time()
+            self.runner.current_learning_iteration = self.iteration
+            self.runner.learn(chunk)
+            self.iteration += chunk
+            self.env_steps = self.iteration * self.steps_per_iteration
+            self.wall += time.time() - start
+            self.progress.append({"iteration": self.iteration, "env_steps": self.env_steps, "wall_s": round(self.wall, 1),
+                                  **self.env.last_episode_stats})
+            self.save()
+            bar.update(chunk)
+            bar.set_postfix(steps=f"{self.env_steps / 1e6:.2f}M", success=self.env.last_episode_stats.get("success_flat"))
+        bar.close()
+        draw_curve(self.progress, self.out / "curve.png", title=f"{self.method} ({self.out.name})")
+
+
+def policy_checkpoint(method: str, config: dict, actor, iteration: int, env_steps: int, wall: float) -> dict:
+    """The frbench policy checkpoint: plain tensors and JSON-able values only (``weights_only`` loadable)."""
+    env = config["env"]
+    return {
+        "format": CHECKPOINT_FORMAT,
+        "method": method,
+        "config_json": json.dumps(config),
+        "actor_state_dict": {k: v.detach().cpu().clone() for k, v in actor.state_dict().items()},
+        "action_scale": float(env["action_scale"]),
+        "history": int(env["history"]),
+        "iteration": int(iteration),
+        "env_steps": int(env_steps),
+        "wall_s": float(wall),
+    }
+
+
+def draw_curve(progress: list[dict], path: Path, title: str) -> None:
+    """Success rate (flat ground and all terrains) against env steps, as a PNG."""
+    if not progress:
+        return
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    steps = np.array([row["env_steps"] for row in progress]) / 1e6
+    fig, ax = plt.subplots(figsize=(6, 3.5), dpi=120)
+    for key, label in (("success_flat", "flat ground"), ("success_all", "all terrains")):
+        values = [row.get(key) for row in progress]
+        if any(v is not None for v in values):
+            ax.plot(steps, [np.nan if v is None else v for v in values], label=label)
+    ax.set_xlabel("env steps [M]")
+    ax.set_ylabel("training success rate")
+    ax.set_ylim(0, 1)
+    ax.grid(alpha=0.3)
+    ax.legend(loc="lower right")
+    ax.set_title(title)
+    fig.tight_layout()
+    tmp = path.with_name(f".{path.name}.tmp.png")
+    fig.savefig(tmp)
+    plt.close(fig)
+    os.replace(tmp, path)

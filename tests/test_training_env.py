@@ -1,0 +1,101 @@
+"""The training environment, a run's checkpoint/resume, and the learned-policy loader."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from frbench.training.env import RecoveryTrainingEnv, TrainEnvConfig, training_reward_config
+from frbench.training.rewards import PAPER_WEIGHTS
+
+
+@pytest.fixture(scope="module")
+def env():
+    torch.set_num_threads(1)
+    environment = RecoveryTrainingEnv(TrainEnvConfig(num_envs=8, episode_steps=6, settle_steps=5, num_morphologies=4))
+    yield environment
+    environment.close()
+
+
+def test_observation_groups_have_the_papers_sizes(env):
+    obs = env.get_observations()
+    widths = {key: tuple(value.shape) for key, value in obs.items()}
+    assert widths == {"policy": (8, 42), "history": (8, 210), "privileged": (8, 277), "mass": (8, 4),
+                      "contact": (8, 13), "velocity": (8, 3), "extrinsics": (8, 11)}
+    assert torch.isfinite(obs["privileged"]).all()
+
+
+def test_mass_labels_are_pinocchio_group_masses_plus_payload(env):
+    from frbench.robots import ground_truth
+
+    obs = env.get_observations()
+    for i in range(env.num_envs):
+        spec = env.specs[env.assignment[i]]
+        expected = ground_truth.group_masses(spec)
+        expected[0] += env.env_payload[i]
+        np.testing.assert_allclose(obs["mass"][i].numpy(), expected, rtol=1e-5)
+
+
+def test_episodes_end_together_and_the_curriculum_moves(env):
+    dones = []
+    for _ in range(6):
+        obs, reward, done, extras = env.step(torch.zeros(env.num_envs, env.num_actions))
+        dones.append(bool(done.all()))
+        assert reward.shape == (env.num_envs,) and torch.isfinite(reward).all()
+    assert dones == [False] * 5 + [True]
+    assert extras["time_outs"].all()
+    assert "/episode/success_all" in extras["log"] and "/curriculum/level/all" in extras["log"]
+    assert env.step_count == 0  # a new episode started
+
+
+def test_the_training_reward_keeps_the_papers_weights_visible():
+    config = training_reward_config()
+    deviations = config.deviations()
+    assert set(deviations) == {"joint_velocity", "joint_acceleration", "joint_torques"}
+    assert deviations["joint_velocity"][0] == PAPER_WEIGHTS["joint_velocity"] == -1e-2
+    assert config.weights["joint_velocity"] == pytest.approx(-1e-3)
+    assert config.weights["upright_orientation"] == 6.0
+
+
+def test_a_run_checkpoints_resumes_and_its_policy_acts_identically(tmp_path):
+    from frbench.policies.registry import load_policy
+    from frbench.robots import get_robot
+    from frbench.training.run import TrainingRun
+
+    cfg = TrainEnvConfig(num_envs=8, episode_steps=5, settle_steps=2, num_morphologies=2, families=("flat", "rough"))
+    run = TrainingRun(tmp_path / "run", "frnet", cfg, total_steps=8 * 24 * 2, checkpoint_every=1)
+    run.train(progress_bar=False)
+    assert run.iteration == 2 and run.env_steps == 384
+    levels = run.env.curriculum.level.copy()
+    data = torch.load(tmp_path / "run" / "policy.pt", weights_only=True)
+    assert data["format"] == "frbench-policy-v1" and data["method"] == "frnet" and data["env_steps"] == 384
+    resumed = TrainingRun(tmp_path / "run", total_steps=8 * 24 * 3, resume=True, checkpoint_every=1)
+    assert resumed.iteration == 2 and resumed.env_steps == 384
+    assert np.array_equal(resumed.env.curriculum.level, levels)
+    resumed.train(progress_bar=False)
+    assert resumed.iteration == 3 and resumed.env_steps == 576
+    assert [row["iteration"] for row in json.loads((tmp_path / "run" / "progress.json").read_text())] == [1, 2, 3]
+    assert (tmp_path / "run" / "curve.png").stat().st_size > 1000
+    spec = get_robot("go2")
+    obs = {"base_angvel": np.full((2, 3), 0.1), "projected_gravity": np.tile([0.0, 0.0, 1.0], (2, 1)),
+           "joint_pos": np.tile(spec.default_pose, (2, 1)), "joint_vel": np.zeros((2, 12)),
+           "previous_action": np.tile(spec.default_pose, (2, 1))}
+    actions = []
+    for _ in range(2):
+        policy = load_policy(str(tmp_path / "run"))
+        policy.reset(spec, 2)
+        actions.append(np.stack([policy.act(obs) for _ in range(3)]))
+    assert np.array_equal(actions[0], actions[1])
+    assert actions[0].shape == (3, 2, 12) and np.isfinite(actions[0]).all()
+
+
+def test_train_refuses_to_overwrite_a_run(tmp_path):
+    from frbench.errors import FrbenchError
+    from frbench.training.run import TrainingRun
+
+    (tmp_path / "config.json").write_text("{}")
+    with pytest.raises(FrbenchError, match="a run is already there; use --resume"):
+        TrainingRun(tmp_path, "frnet", TrainEnvConfig(num_envs=2), total_steps=10)
