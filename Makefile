@@ -27,16 +27,20 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest
+	$(BIN)/frbench leaderboard --check
 
 test-slow: $(STAMP)
 	$(BIN)/python -m pytest -m slow
 
 test-browser: $(STAMP)
 	command -v chromium >/dev/null || (apt-get update -qq && apt-get install -y -qq chromium)
-	$(BIN)/python -m pytest -m browser
+	$(BIN)/python -m pytest -m browser tests/test_leaderboard_browser.py
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/throughput.py
+	$(BIN)/python benchmarks/evaluation_throughput.py
+	$(BIN)/python benchmarks/terrain_throughput.py
+	$(BIN)/python benchmarks/training_throughput.py
 
 clean:
 	rm -rf $(VENV)
