@@ -110,6 +110,7 @@ class RecoveryTrainingEnv(VecEnv):
         self.backend = make_backend(cfg.backend, self.spec, n, terrain=self.grid.world, variants=self.variants)
         self.default_pose = np.asarray(self.spec.default_pose)
         self.lower, self.upper = np.asarray(self.spec.joint_lower), np.asarray(self.spec.joint_upper)
+        self.reward_cfg = self._reward_config(cfg.reward)
         self.last_episode_stats: dict[str, float] = {}
         self._reset_all()
 
@@ -139,6 +140,24 @@ class RecoveryTrainingEnv(VecEnv):
         self.nominal_height = np.array([s.nominal_height for s in specs])[self.assignment]
         self._pin = [ground_truth.load(s) for s in specs]
         self._pin_data = [p.model.createData() for p in self._pin]
+
+    def _reward_config(self, reward: RewardConfig) -> RewardConfig:
+        """The velocity-limit threshold read as legged_gym does: 0.8 × each joint's URDF velocity limit.
+
+        The paper writes max(|q̇| − 0.8, 0); FR-Net builds on legged_gym, whose
+        ``dof_vel_limits`` reward uses ``soft_dof_vel_limit = 0.8`` of the URDF
+        limit. Read literally (0.8 rad/s) the term dominates every other reward.
+        """
+        import dataclasses
+
+        from frbench.robots.urdf_tree import parse_urdf
+        from frbench.training.rewards import DEFAULT_VELOCITY_THRESHOLD
+
+        if reward.velocity_threshold != DEFAULT_VELOCITY_THRESHOLD:
+            return reward
+        joints = parse_urdf(self.spec.urdf_path).joints
+        limits = [joints[name].velocity or 30.0 for name in self.spec.joint_names]
+        return dataclasses.replace(reward, velocity_threshold=tuple(0.8 * v for v in limits))
 
     # ------------------------------------------------------------------ episodes
     def _reset_all(self) -> None:
@@ -243,7 +262,7 @@ class RecoveryTrainingEnv(VecEnv):
             foot_contact=c.foot_contact, body_contact=c.group_contact.any(axis=1), knee_force_xy=c.knee_force_xy,
             base_xy=s.base_pos[:, :2], init_xy=self.init_xy,
         )
-        reward, terms = compute_rewards(inputs, self.cfg_obj.reward)
+        reward, terms = compute_rewards(inputs, self.reward_cfg)
         alive = ~self.backend.diverged
         reward = np.where(alive, np.nan_to_num(reward), 0.0)
         from frbench.tasks.success import StepSignals
