@@ -25,6 +25,7 @@ COMMAND_MODULES = (
     "frbench.commands.render",
     "frbench.commands.leaderboard",
     "frbench.commands.train",
+    "frbench.commands.analyze",
 )
 
 

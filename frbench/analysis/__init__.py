@@ -1,0 +1,1 @@
+"""Analyses of trained policies (the Mass-Contact Predictor's quality)."""

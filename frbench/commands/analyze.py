@@ -1,0 +1,39 @@
+"""``frbench analyze-mcp``: the Mass-Contact Predictor's mass errors and contact accuracy on unseen robots."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add ``analyze-mcp`` to the CLI."""
+    p = sub.add_parser("analyze-mcp", help="mass error and contact accuracy of a trained MCP on unseen robots")
+    p.add_argument("--policy", required=True, help="run folder or policy.pt of an frnet-style method")
+    p.add_argument("--robots", default="go2,go1,aliengo,spot_like,lite3_like", help="named robots to test")
+    p.add_argument("--held-out", type=int, default=4, help="also this many freshly sampled morphologies")
+    p.add_argument("--episodes", type=int, default=8)
+    p.add_argument("--backend", default="mujoco")
+    p.add_argument("--out", type=Path, default=Path("docs/mcp"), help="folder for mcp_quality.json and mcp_heatmap.png")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    """Evaluate and write the report."""
+    import numpy as np
+
+    from frbench.analysis.mcp_quality import evaluate_mcp, write_report
+    from frbench.robots import get_robot
+    from frbench.training.randomization import morphology_specs, sample_morphologies
+
+    specs = [get_robot(name.strip()) for name in args.robots.split(",") if name.strip()]
+    held_out = sample_morphologies(args.held_out, np.random.default_rng(987654321))
+    specs += morphology_specs(held_out, prefix="heldout")
+    result = evaluate_mcp(args.policy, specs, episodes=args.episodes, backend=args.backend)
+    json_path, png_path = write_report(result, args.out)
+    for name, row in result["robots"].items():
+        errors = ", ".join(f"{k} {v:.2f}" for k, v in row["mass_abs_error_kg"].items())
+        accuracy = np.mean(list(row["contact_accuracy"].values()))
+        print(f"{name:<16} |mass error| [kg]: {errors}; mean contact accuracy {accuracy:.3f}")
+    print(f"wrote {json_path} and {png_path}")
+    return 0
