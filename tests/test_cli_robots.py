@@ -64,3 +64,13 @@ def test_bad_urdf_is_refused_without_a_traceback(tmp_path, capsys):
     assert main(["robot", "check", str(path)]) == 2
     err = capsys.readouterr().err
     assert f"{path}: not valid XML" in err and "Traceback" not in err
+
+
+def test_json_output_is_clean_json_at_the_file_descriptor_level():
+    """Bullet prints ``argv[0]=`` from C on every connect; ``--json`` output must still parse."""
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-m", "frbench.cli", "robot", "check", "go1", "--json"],
+                         capture_output=True, text=True, check=True).stdout
+    assert json.loads(out)["robot"] == "go1"

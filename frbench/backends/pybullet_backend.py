@@ -18,6 +18,10 @@ differently, converted here:
 
 from __future__ import annotations
 
+import contextlib
+import os
+import sys
+
 import numpy as np
 import pybullet as p
 from pybullet_utils.bullet_client import BulletClient
@@ -35,6 +39,21 @@ from frbench.robots.sim_urdf import self_collision_exclusions, sim_robot_file
 from frbench.robots.spec import RobotSpec
 
 _LOAD_FLAGS = p.URDF_USE_INERTIA_FROM_FILE | p.URDF_USE_SELF_COLLISION | p.URDF_USE_SELF_COLLISION_EXCLUDE_ALL_PARENTS
+
+
+@contextlib.contextmanager
+def _c_stdout_silenced():
+    """Silence C-level stdout (Bullet prints ``argv[0]=`` on every connect, which breaks ``--json`` output)."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 1)
+        yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(devnull)
+        os.close(saved)
 
 
 def _rotation(client: BulletClient, xyzw) -> np.ndarray:
@@ -62,7 +81,8 @@ class _Simulation:
     def __init__(self, spec: RobotSpec, urdf_path: str, terrain, link_names: tuple[str, ...]):
         from frbench.terrains.build import add_to_bullet
 
-        self.client = BulletClient(connection_mode=p.DIRECT)
+        with _c_stdout_silenced():
+            self.client = BulletClient(connection_mode=p.DIRECT)
         c = self.client
         c.setGravity(0, 0, -9.81)
         c.setPhysicsEngineParameter(fixedTimeStep=spec.physics_dt, numSubSteps=0)
