@@ -32,6 +32,13 @@ BACKEND_LABELS = {"mujoco": "MuJoCo", "pybullet": "PyBullet"}
 PROVENANCE_FIELDS = ("schema_version", "protocol_version", "frbench", "versions", "created", "policy", "config", "robots")
 
 
+
+def _identity(record: dict) -> dict:
+    """The fields that name a record on the board: id, submission fields, track."""
+    sub = record["submission"]
+    keys = ("name", "policy", "submitter", "description", "link", "submitted")
+    return {"id": record["id"], **{key: sub[key] for key in keys}, "track": record["track"]}
+
 def _ordered(standard: Sequence, found: Iterable) -> list:
     found = set(found)
     return [x for x in standard] + sorted(found - set(standard), key=str)
@@ -64,16 +71,8 @@ def board(records: Sequence[Mapping], *, robot: str | None = None, backend: str 
         scores = aggregate(groups, robot=robot, backend=backend, terrain=terrain)
         if scores is None:
             continue
-        sub = record["submission"]
         tracks[record["track"]].append({
-            "id": record["id"],
-            "name": sub["name"],
-            "policy": sub["policy"],
-            "submitter": sub["submitter"],
-            "description": sub["description"],
-            "link": sub["link"],
-            "submitted": sub["submitted"],
-            "track": record["track"],
+            **_identity(record),
             "protocol_version": record["results"]["protocol_version"],
             "scores": scores,
         })
@@ -252,16 +251,8 @@ def page_data(records: Sequence[Mapping]) -> dict:
     entries = []
     for record in sorted(records, key=lambda r: rank_key(r["scores"], r["submission"]["submitted"], r["id"])):
         groups = groups_of(scored_cells(record["results"]["cells"], record["track"]))
-        sub = record["submission"]
         entries.append({
-            "id": record["id"],
-            "name": sub["name"],
-            "policy": sub["policy"],
-            "submitter": sub["submitter"],
-            "description": sub["description"],
-            "link": sub["link"],
-            "submitted": sub["submitted"],
-            "track": record["track"],
+            **_identity(record),
             "episodes": record["scores"]["episodes"],
             "groups": [[*key, total, count] for key, (total, count) in groups.items()],
             "provenance": {k: record["results"][k] for k in PROVENANCE_FIELDS},
