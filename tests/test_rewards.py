@@ -52,7 +52,7 @@ def test_paper_weights_exactly_the_table():
         "action_smoothing": -0.01,
         "joint_torques": -5e-4,
     }
-    assert set(R.REWARD_TERMS) == set(R.PAPER_WEIGHTS)
+    assert set(R.REWARD_TERMS) == set(R.PAPER_WEIGHTS) | {"base_height"}  # frbench's one addition
     assert R.RewardConfig().weights == R.PAPER_WEIGHTS
     assert R.stability_terms == ("safety_force", "body_bias")
 
@@ -133,6 +133,7 @@ def test_joint_acceleration_velocity_smoothing_torques():
 
 def test_every_term_returns_float_n():
     x = make_inputs(5)
+    x.base_height, x.nominal_height = np.full(5, 0.2), 0.3
     for name, fn in R.REWARD_TERMS.items():
         value = fn(x)
         assert value.shape == (5,), name
@@ -215,3 +216,15 @@ def test_shape_errors_name_the_field():
     x.tau = np.zeros((2, J + 1))
     with pytest.raises(ValueError, match="tau"):
         R.compute_rewards(x)
+
+
+def test_base_height_term_is_height_over_nominal_clipped():
+    n = 3
+    x = R.RewardInputs(
+        projected_gravity=np.tile([0.0, 0.0, -1.0], (n, 1)), q=np.zeros((n, 2)), qd=np.zeros((n, 2)),
+        qd_prev=np.zeros((n, 2)), tau=np.zeros((n, 2)), action=np.zeros((n, 2)), action_prev=np.zeros((n, 2)),
+        q_stand=np.zeros(2), q_lower=-np.ones(2), q_upper=np.ones(2), foot_contact=np.zeros((n, 4), bool),
+        body_contact=np.zeros(n, bool), knee_force_xy=np.zeros((n, 4)), base_xy=np.zeros((n, 2)),
+        init_xy=np.zeros((n, 2)), base_height=np.array([0.15, 0.45, -0.1]), nominal_height=0.3,
+    )
+    np.testing.assert_allclose(R.base_height(x), [0.5, 1.0, 0.0])

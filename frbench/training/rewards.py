@@ -141,6 +141,9 @@ class RewardInputs:
         base_xy: (N, 2) base position [m].
         init_xy: (N, 2) base position at the episode start [m].
         dt: control period [s].
+        base_height: (N,) base height above the terrain beneath it [m] (only
+            the frbench ``base_height`` term reads it).
+        nominal_height: (N,) or scalar standing base height [m].
     """
 
     projected_gravity: np.ndarray
@@ -159,6 +162,8 @@ class RewardInputs:
     base_xy: np.ndarray
     init_xy: np.ndarray
     dt: float = 0.02
+    base_height: np.ndarray | None = None
+    nominal_height: np.ndarray | float | None = None
 
     @property
     def num_envs(self) -> int:
@@ -280,6 +285,20 @@ def joint_torques(x: RewardInputs) -> np.ndarray:
     return _sum_sq(x.tau)
 
 
+def base_height(x: RewardInputs) -> np.ndarray:
+    """clip(h / h_nominal, 0, 1): base height above the terrain relative to standing. Not in the paper.
+
+    frbench's training adds it (weight 2, recorded as a deviation): without a
+    term that pays for rising, policies trained on the paper's table within
+    2 M steps rolled onto their bellies and stayed there (0 % success); the
+    notes' plain-PPO data point and MuJoCo Playground's getup task both use a
+    height term.
+    """
+    if x.base_height is None or x.nominal_height is None:
+        raise ValueError("base_height needs RewardInputs.base_height and nominal_height")
+    return np.clip(np.asarray(x.base_height, dtype=np.float64) / np.asarray(x.nominal_height, dtype=np.float64), 0.0, 1.0)
+
+
 #: Term name → function of the inputs (parameterised terms at their defaults).
 REWARD_TERMS: dict[str, Callable[[RewardInputs], np.ndarray]] = {
     "base_orientation": base_orientation,
@@ -295,6 +314,7 @@ REWARD_TERMS: dict[str, Callable[[RewardInputs], np.ndarray]] = {
     "joint_velocity": joint_velocity,
     "action_smoothing": action_smoothing,
     "joint_torques": joint_torques,
+    "base_height": base_height,
 }
 
 # Terms that take a parameter from the config: name → config → keyword arguments.
@@ -347,6 +367,7 @@ class RewardConfig:
         if not (math.isfinite(self.epsilon) and self.epsilon > 0):
             raise ValueError(f"epsilon must be positive, got {self.epsilon!r}")
         deviating = {name for name, w in PAPER_WEIGHTS.items() if weights.get(name) != w}
+        deviating |= set(weights) - set(PAPER_WEIGHTS)  # terms the paper does not have
         missing = sorted(deviating - set(reasons))
         if missing:
             raise ValueError(
@@ -357,12 +378,11 @@ class RewardConfig:
         if needless:
             raise ValueError(f"overrides_reason names {needless}, whose weights equal the paper's")
 
-    def deviations(self) -> dict[str, tuple[float, float | None, str]]:
-        """Term → (paper weight, weight used or None if dropped, reason), for every deviation."""
+    def deviations(self) -> dict[str, tuple[float | None, float | None, str]]:
+        """Term → (paper weight or None if the paper has no such term, weight used or None if dropped, reason)."""
         return {
-            name: (PAPER_WEIGHTS[name], self.weights.get(name), self.overrides_reason[name])
-            for name in PAPER_WEIGHTS
-            if name in self.overrides_reason
+            name: (PAPER_WEIGHTS.get(name), self.weights.get(name), reason)
+            for name, reason in self.overrides_reason.items()
         }
 
     def without(self, names: tuple[str, ...] | list[str], reason: str) -> "RewardConfig":
