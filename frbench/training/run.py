@@ -61,6 +61,7 @@ def env_cfg_from_dict(data: dict):
     data = dict(data)
     reward = data.pop("reward")
     data["families"] = tuple(data["families"])
+    data["gain_ranges"] = {k: tuple(v) for k, v in data.get("gain_ranges", {}).items()}
     return TrainEnvConfig(**data, reward=RewardConfig(**reward))
 
 
