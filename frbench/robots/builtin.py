@@ -7,8 +7,9 @@ Gains: the PD alone must hold each robot at its default pose within 10 % of
 its kinematic standing height (the ``frbench robot check`` standing test).
 The Kp 20 / Kd 0.5 that locomotion codebases use sags Go1 by 27 % and Aliengo
 by 34 % in both simulators, so the quadrupeds use stiffer gains inside the
-paper's randomisation range (Kp 20–80, Kd 0.6–2.0): Go2 40/1, Go1 60/1.5,
-Aliengo 80/2. A policy that wants other gains may set them per simulation
+paper's randomisation range (Kp 20–80, Kd 0.6–2.0): Go2 40/1, Go1 60/1,
+Aliengo 80/2. Kd stays low enough for explicit PD without armature to be
+stable on light calves (kd·dt/I below about 1; at 2 the loop chatters). A policy that wants other gains may set them per simulation
 (`frbench.backends.base.PhysicsParams`).
 """
 
@@ -79,7 +80,7 @@ def go1() -> RobotSpec:
         example_robot_data("go1_description/urdf/go1.urdf"),
         "base", "{}_hip", "{}_thigh", "{}_calf", "{}_foot",
         _quadruped_pose(0.1, 0.9, 0.9, -1.8),
-        kp=60.0, kd=1.5,
+        kp=60.0, kd=1.0,
         source="example-robot-data 6.0.0 go1_description/urdf/go1.urdf",
         license="BSD-3-Clause (package); upstream Unitree",
         notes="root link 'base' (1e-6 kg) carries the merged trunk",
