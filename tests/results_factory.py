@@ -158,3 +158,16 @@ def write_results(path: Path, results: dict) -> Path:
     path = Path(path)
     path.write_text(json.dumps(results, indent=1), encoding="utf-8")
     return path
+
+
+def empty_board_copy(source, dest):
+    """A copy of the leaderboard folder ``source`` at ``dest`` with no records, its pages regenerated."""
+    import shutil
+
+    from frbench.leaderboard import regenerate
+
+    shutil.copytree(source, dest)
+    for record in (dest / "records").glob("*.json"):
+        record.unlink()
+    regenerate(dest)
+    return dest

@@ -25,7 +25,7 @@ from frbench.leaderboard.results import check_results
 from frbench.schemas import SCHEMA_NAMES, load_schema, schema_text, validate
 
 sys.path.insert(0, str(Path(__file__).parent))
-from results_factory import make_results, small_results, write_results  # noqa: E402
+from results_factory import empty_board_copy, make_results, small_results, write_results  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 REPO_BOARD = REPO / "leaderboard"
@@ -43,10 +43,8 @@ def full() -> dict:
 
 @pytest.fixture
 def root(tmp_path: Path) -> Path:
-    """A temporary copy of the repository's leaderboard folder."""
-    dest = tmp_path / "leaderboard"
-    shutil.copytree(REPO_BOARD, dest)
-    return dest
+    """A temporary copy of the repository's leaderboard folder, without its records."""
+    return empty_board_copy(REPO_BOARD, tmp_path / "leaderboard")
 
 
 def snapshot(folder: Path) -> dict[str, bytes | None]:
@@ -470,8 +468,7 @@ def test_concurrent_identical_submissions_land_once(root, tmp_path, capsys):
 def populated_template(tmp_path_factory, full) -> Path:
     """A leaderboard with two main records and one partial one, built once."""
     folder = tmp_path_factory.mktemp("populated")
-    root = folder / "leaderboard"
-    shutil.copytree(REPO_BOARD, root)
+    root = empty_board_copy(REPO_BOARD, folder / "leaderboard")
     better = make_results(episodes=2, skill=0.95, salt=1, policy="ppo", checkpoint="runs/ppo/model.pt")
     for name, results in (("baseline", full), ("ppo-best", better), ("tiny", small_results())):
         lb.submit(write_results(folder / f"{name}.json", results), root, name=name)

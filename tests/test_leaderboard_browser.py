@@ -28,7 +28,7 @@ from frbench.leaderboard.records import build_record, load_records, submission_f
 from frbench.leaderboard.render import render_html
 
 sys.path.insert(0, str(Path(__file__).parent))
-from results_factory import make_results, small_results, write_results  # noqa: E402
+from results_factory import empty_board_copy, make_results, small_results, write_results  # noqa: E402
 
 pytestmark = pytest.mark.browser
 
@@ -60,7 +60,7 @@ def board_dir(tmp_path_factory) -> Path:
     """A leaderboard with three main records and two partial ones, written by `frbench submit`."""
     folder = tmp_path_factory.mktemp("browser")
     root = folder / "leaderboard"
-    shutil.copytree(REPO_BOARD, root)
+    empty_board_copy(REPO_BOARD, root)
     entries = [
         ("scripted-baseline", make_results(episodes=2), "frbench team", "The scripted stand-up controller shipped with frbench.", "https://example.org/frbench"),
         ("ppo-rough-v2", make_results(episodes=2, skill=0.95, salt=1, policy="ppo", checkpoint="runs/ppo/model.pt"), "A. Researcher", "PPO with a rough-terrain curriculum & domain randomization", None),
