@@ -26,6 +26,7 @@ COMMAND_MODULES = (
     "frbench.commands.leaderboard",
     "frbench.commands.train",
     "frbench.commands.analyze",
+    "frbench.commands.export",
 )
 
 

@@ -90,6 +90,21 @@ def test_a_run_checkpoints_resumes_and_its_policy_acts_identically(tmp_path):
         actions.append(np.stack([policy.act(obs) for _ in range(3)]))
     assert np.array_equal(actions[0], actions[1])
     assert actions[0].shape == (3, 2, 12) and np.isfinite(actions[0]).all()
+    # the ONNX export carries the estimator and matches the torch actor
+    import onnx
+    from onnx.reference import ReferenceEvaluator
+    from tensordict import TensorDict
+
+    from frbench.policies.export import export_onnx
+
+    path = export_onnx(str(tmp_path / "run"), tmp_path / "policy.onnx")
+    onnx.checker.check_model(onnx.load(path))
+    o, h = np.random.default_rng(0).normal(size=(1, 42)).astype(np.float32), np.zeros((1, 210), np.float32)
+    exported = ReferenceEvaluator(str(path)).run(None, {"obs": o, "history": h})[0]
+    with torch.inference_mode():
+        reference = policy.actor(TensorDict({"policy": torch.tensor(o), "history": torch.tensor(h)}, batch_size=[1]))
+    np.testing.assert_allclose(exported, reference.numpy(), atol=1e-5)
+    assert json.loads(path.with_suffix(".json").read_text())["inputs"] == {"obs": [1, 42], "history": [1, 210]}
 
 
 def test_train_refuses_to_overwrite_a_run(tmp_path):
