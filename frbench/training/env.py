@@ -24,6 +24,7 @@ joint limits (the paper's q* = q̊ + a with a scale, as legged_gym).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -60,6 +61,10 @@ HEIGHT_REASON = (
 )
 
 
+#: Target-posture kernel width of frbench's training [rad²] (the paper: 1); see docs/training.md.
+POSTURE_SIGMA2 = 3.0
+
+
 def training_reward_config() -> "RewardConfig":
     """The paper's reward table, motion penalties x0.1, plus a base-height term (reasons recorded in the config)."""
     from frbench.training.rewards import PAPER_WEIGHTS
@@ -67,7 +72,8 @@ def training_reward_config() -> "RewardConfig":
     config = RewardConfig()
     for term in ("joint_velocity", "joint_acceleration", "joint_torques"):
         config = config.with_weight(term, 0.1 * PAPER_WEIGHTS[term], MOTION_PENALTY_REASON)
-    return config.with_weight("base_height", 2.0, HEIGHT_REASON)
+    config = config.with_weight("base_height", 2.0, HEIGHT_REASON)
+    return dataclasses.replace(config, posture_sigma2=POSTURE_SIGMA2)
 
 
 #: Gain ranges of frbench's training (the paper: Kp [20, 80], Kd [0.6, 2.0]); see docs/training.md.

@@ -213,10 +213,10 @@ def upright_orientation(x: RewardInputs, epsilon: float = DEFAULT_EPSILON) -> np
     return np.exp(-((gz + 1.0) ** 2) / (2.0 * epsilon**2))
 
 
-def target_posture(x: RewardInputs, epsilon: float = DEFAULT_EPSILON) -> np.ndarray:
-    """exp(−Σ_j (q_j − q_stand,j)²) [rad²] where |g_z + 1| < ε, else 0. Paper weight 4.0."""
+def target_posture(x: RewardInputs, epsilon: float = DEFAULT_EPSILON, sigma2: float = 1.0) -> np.ndarray:
+    """exp(−Σ_j (q_j − q_stand,j)² / σ²) where |g_z + 1| < ε, else 0. Paper weight 4.0, σ² = 1 rad²."""
     gz = np.asarray(x.projected_gravity, dtype=np.float64)[:, 2]
-    close = np.exp(-_sum_sq(np.asarray(x.q, dtype=np.float64) - x.q_stand))
+    close = np.exp(-_sum_sq(np.asarray(x.q, dtype=np.float64) - x.q_stand) / sigma2)
     return np.where(np.abs(gz + 1.0) < epsilon, close, 0.0)
 
 
@@ -320,7 +320,7 @@ REWARD_TERMS: dict[str, Callable[[RewardInputs], np.ndarray]] = {
 # Terms that take a parameter from the config: name → config → keyword arguments.
 _TERM_KWARGS: dict[str, Callable[["RewardConfig"], dict]] = {
     "upright_orientation": lambda c: {"epsilon": c.epsilon},
-    "target_posture": lambda c: {"epsilon": c.epsilon},
+    "target_posture": lambda c: {"epsilon": c.epsilon, "sigma2": c.posture_sigma2},
     "velocity_limit": lambda c: {"threshold": c.velocity_threshold},
 }
 
@@ -338,6 +338,8 @@ class RewardConfig:
         epsilon: ε of the upright Gaussian and the posture gate [-] (g_z units).
         velocity_threshold: joint speed above which ``velocity_limit`` penalises
             [rad/s], a scalar or one value per joint.
+        posture_sigma2: width σ² [rad²] of the target-posture kernel exp(−Σ(q − q_stand)²/σ²);
+            the paper's formula has σ² = 1.
         scale_by_dt: multiply every weighted term by ``inputs.dt`` (legged_gym's
             convention; see the module docstring).
         overrides_reason: term name → why its weight differs from the paper's
@@ -348,6 +350,7 @@ class RewardConfig:
     weights: Mapping[str, float] = field(default_factory=lambda: dict(PAPER_WEIGHTS))
     epsilon: float = DEFAULT_EPSILON
     velocity_threshold: float | tuple[float, ...] = DEFAULT_VELOCITY_THRESHOLD
+    posture_sigma2: float = 1.0
     scale_by_dt: bool = True
     overrides_reason: Mapping[str, str] = field(default_factory=dict)
 

@@ -48,7 +48,7 @@ def _env_cfg_to_dict(cfg) -> dict:
     for key, value in dataclasses.asdict(cfg).items():
         out[key] = list(value) if isinstance(value, tuple) else value
     reward = cfg.reward
-    out["reward"] = {"weights": dict(reward.weights), "epsilon": reward.epsilon,
+    out["reward"] = {"weights": dict(reward.weights), "epsilon": reward.epsilon, "posture_sigma2": reward.posture_sigma2,
                      "scale_by_dt": reward.scale_by_dt, "overrides_reason": dict(reward.overrides_reason)}
     return out
 
