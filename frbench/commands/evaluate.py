@@ -35,7 +35,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--terrains", type=_list, default=d.terrains, help="terrain families (default: all seven)")
     p.add_argument("--levels", type=_ints, default=d.levels, help="difficulty levels 1-10 (default 1,5,10)")
     p.add_argument("--seeds", type=_ints, default=d.seeds, help="evaluation seeds (default 0,1)")
-    p.add_argument("--episodes", type=int, default=d.episodes, help="episodes per cell (default 4)")
+    p.add_argument("--episodes", type=int, default=d.episodes, help="episodes per cell (default 8)")
     p.add_argument("--noise", action="store_true", help="add sensor noise to the observations")
     p.add_argument("--jobs", type=int, default=0, help="worker processes (default: one per core)")
     p.add_argument("--out", type=Path, default=None, help="results JSON (default results/<policy>.json)")

@@ -28,7 +28,7 @@ class EvaluationRequest:
     terrains: list[str] = field(default_factory=lambda: ["flat", "rough", "slopes", "stairs", "stones", "gaps", "beams"])
     levels: list[int] = field(default_factory=lambda: [1, 5, 10])
     seeds: list[int] = field(default_factory=lambda: [0, 1])
-    episodes: int = 4
+    episodes: int = 8
     noise: bool = False
     jobs: int = 0
 
