@@ -209,3 +209,16 @@ def test_terrain_show_writes_a_png(tmp_path):
     import imageio.v3 as iio
 
     assert iio.imread(out).shape == (90, 120, 3)
+
+
+def test_the_shipped_frnet_checkpoint_loads_and_acts():
+    import torch
+
+    from frbench.policies.registry import load_policy, shipped_checkpoint
+
+    data = torch.load(shipped_checkpoint("frnet"), weights_only=True)
+    assert data["format"] == "frbench-policy-v1" and data["method"] == "frnet"
+    policy = load_policy("frnet")
+    records = run_cell(Cell("go2", "mujoco", "flat", 1, 0, 2), "frnet")
+    assert len(records) == 2 and all(np.isfinite(r["energy"]) for r in records)
+    assert policy.supports(get_robot("go1")) and not policy.supports(get_robot("g1"))
