@@ -126,7 +126,7 @@ def render_table(records: Sequence[Mapping], **filters) -> str:
     if data["filters"]:
         out.append("filters: " + " ".join(f"{k}={v}" for k, v in data["filters"].items()))
     titles = {
-        "main": f"Main board: records covering the standard grid, ranked by mean success",
+        "main": "Main board: records covering the standard grid, ranked by mean success",
         "partial": "Partial records (not ranked against the main board)",
     }
     for track in ("main", "partial"):

@@ -120,7 +120,6 @@ class TrainingRun:
 
     def save(self) -> None:
         """Write runner, state, policy and progress (each atomically)."""
-        import torch
 
         self.runner.current_learning_iteration = self.iteration
         tmp = self.out / f".{RUNNER_FILE}.tmp"
