@@ -101,6 +101,18 @@ def test_a_misbehaving_policy_is_stopped_with_its_name(monkeypatch, output, mess
         run_cell(Cell("go2", "mujoco", "flat", 1, 0, 2), "bad")
 
 
+def test_results_of_a_trained_policy_are_accepted_by_the_leaderboard(tmp_path, capsys):
+    from frbench.leaderboard import check_results
+
+    out = tmp_path / "frnet.json"
+    argv = ["evaluate", "--policy", "frnet", "--terrains", "flat", "--levels", "1", "--seeds", "0",
+            "--episodes", "1", "--jobs", "1", "--out", str(out)]
+    assert main(argv) == 0
+    results = json.loads(out.read_text())
+    assert results["policy"]["name"] == "frnet" and len(results["policy"]["sha256"]) == 64
+    check_results(results)  # raises on anything the leaderboard would refuse
+
+
 def test_evaluate_writes_consistent_results(tmp_path, capsys):
     out = tmp_path / "r.json"
     argv = ["evaluate", "--policy", "zero", "--robots", "go2", "--terrains", "flat,gaps", "--levels", "1",
@@ -219,6 +231,7 @@ def test_the_shipped_frnet_checkpoint_loads_and_acts():
     data = torch.load(shipped_checkpoint("frnet"), weights_only=True)
     assert data["format"] == "frbench-policy-v1" and data["method"] == "frnet"
     policy = load_policy("frnet")
+    assert policy.name == "frnet"
     records = run_cell(Cell("go2", "mujoco", "flat", 1, 0, 2), "frnet")
     assert len(records) == 2 and all(np.isfinite(r["energy"]) for r in records)
     assert policy.supports(get_robot("go1")) and not policy.supports(get_robot("g1"))

@@ -22,6 +22,15 @@ GROUP_WIDTHS = {"policy": 42, "history": 5 * 42, "privileged": 277, "mass": 4, "
 DEPLOYABLE_GROUPS = {"policy", "history"}
 
 
+def policy_name(method: str, checkpoint: Path) -> str:
+    """A results-safe name: the method, then the run folder or file stem when it differs (``frnet-myrun``)."""
+    import re
+
+    stem = checkpoint.parent.name if checkpoint.name == "policy.pt" else checkpoint.stem
+    name = method if stem == method else f"{method}-{stem}"
+    return re.sub(r"[^A-Za-z0-9._-]", "-", name)[:64]
+
+
 class LearnedPolicy:
     """A trained quadruped recovery policy (proprioception only)."""
 
@@ -32,7 +41,7 @@ class LearnedPolicy:
 
         self.checkpoint = Path(path)
         self.method = data["method"]
-        self.name = f"{self.method}:{self.checkpoint.parent.name if self.checkpoint.name == 'policy.pt' else self.checkpoint.stem}"
+        self.name = policy_name(self.method, self.checkpoint)
         config = json.loads(data["config_json"])
         train_cfg = config["train_cfg"]
         self.groups = list(train_cfg["obs_groups"]["actor"])
