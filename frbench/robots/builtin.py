@@ -196,13 +196,7 @@ def _morphology_robot(preset_name: str, name: str, source: str) -> RobotSpec:
     from frbench.robots import morphology
 
     params = getattr(morphology, preset_name)
-    path = cache_dir() / "morphology" / f"{name}.urdf"
-    text = morphology.urdf_string(params, name=name)
-    if not path.is_file() or path.read_text() != text:
-        from frbench.io import atomic_write_text
-
-        atomic_write_text(path, text)
-    return morphology.spec_from_params(params, name, path, source=source)
+    return morphology.cached_spec(params, name, cache_dir() / "morphology" / f"{name}.urdf", source=source)
 
 
 def spot_like() -> RobotSpec:

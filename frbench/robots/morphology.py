@@ -594,6 +594,24 @@ def spec_from_params(
     )
 
 
+def cached_spec(params: MorphologyParams, name: str, path: str | Path, **spec_kwargs) -> RobotSpec:
+    """Write ``params``' URDF to ``path`` unless it already holds that text (atomically), and return its spec.
+
+    ``spec_kwargs`` go to :func:`spec_from_params` (e.g. ``source``).
+    """
+    from frbench.io import atomic_write_text
+
+    path = Path(path)
+    text = urdf_string(params, name=name)
+    try:
+        current = path.read_text(encoding="utf-8")
+    except OSError:
+        current = None
+    if current != text:
+        atomic_write_text(path, text)
+    return spec_from_params(params, name, path, **spec_kwargs)
+
+
 # --------------------------------------------------------------------------- presets
 
 _SPOT_TOTAL_MASS = 32.5  # kg, manufacturer's spec sheet (see module docstring)

@@ -55,7 +55,8 @@ class StepSignals:
 class SuccessTracker:
     """Online success test for N episodes (see the module docstring)."""
 
-    def __init__(self, num_envs: int, kind: str, nominal_height: float):
+    def __init__(self, num_envs: int, kind: str, nominal_height: "float | np.ndarray"):
+        """``nominal_height`` [m]: one value, or one per environment (N,) when robots differ."""
         self.kind = kind
         self.nominal_height = nominal_height
         self.success = np.zeros(num_envs, dtype=bool)

@@ -217,17 +217,7 @@ def morphology_spec(params: MorphologyParams, name: str, cache_dir: str | Path |
         ``morphology.spec_from_params(params, name, path)``.
     """
     root = _default_cache_dir() if cache_dir is None else Path(cache_dir)
-    path = root / params_hash(params) / f"{name}.urdf"
-    text = morphology.urdf_string(params, name=name)
-    try:
-        current = path.read_text(encoding="utf-8")
-    except OSError:
-        current = None
-    if current != text:
-        from frbench.io import atomic_write_text
-
-        atomic_write_text(path, text)
-    return morphology.spec_from_params(params, name, path)
+    return morphology.cached_spec(params, name, root / params_hash(params) / f"{name}.urdf")
 
 
 def morphology_specs(
