@@ -21,6 +21,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-curriculum", action="store_true", help="uniform random levels instead of the curriculum")
     p.add_argument("--no-stability", action="store_true", help="drop the stability reward terms (ablation)")
     p.add_argument("--episode-steps", type=int, default=350, help="training episode length (paper: 350)")
+    p.add_argument("--action-scale", type=float, default=None,
+                   help="q* = q̊ + scale·a (default: TrainEnvConfig's; the paper's table reads 1)")
+    p.add_argument("--demo-starts", type=float, default=0.0, metavar="FRACTION",
+                   help="start this fraction of episodes from states along a scripted getting-up motion "
+                        "(annealed to 0 at --demo-until; default 0: off)")
+    p.add_argument("--demo-until", type=float, default=None, metavar="STEPS",
+                   help="env steps at which the demo-start fraction reaches 0 (default: half the budget)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--checkpoint-every", type=int, default=20, help="iterations between checkpoints")
     p.add_argument("--out", type=Path, default=None, help="run folder (default runs/<method>)")
@@ -54,13 +61,19 @@ def run(args) -> int:
         args.steps = 20e6 if args.steps is None else args.steps
         if args.steps <= 0 or args.envs < 1:
             raise FrbenchError("--steps and --envs must be positive")
+        if not 0.0 <= args.demo_starts <= 1.0:
+            raise FrbenchError(f"--demo-starts {args.demo_starts}: expected a fraction in [0, 1]")
+        if args.action_scale is not None and args.action_scale <= 0:
+            raise FrbenchError(f"--action-scale {args.action_scale}: expected a positive number")
         reward = training_reward_config()
         if args.no_stability:
             reward = reward.without(STABILITY_TERMS, "stability-reward ablation (--no-stability)")
         env_cfg = TrainEnvConfig(
             num_envs=args.envs, backend=args.backend, robot=args.robots, num_morphologies=args.morphologies,
             episode_steps=args.episode_steps, families=families, curriculum=not args.no_curriculum,
-            reward=reward, seed=args.seed,
+            reward=reward, seed=args.seed, demo_start_fraction=args.demo_starts,
+            demo_start_until=args.demo_until if args.demo_until is not None else args.steps / 2,
+            **({"action_scale": args.action_scale} if args.action_scale is not None else {}),
         )
         out = args.out or Path("runs") / args.method
         command = "frbench " + " ".join(shlex.quote(a) for a in sys.argv[1:])

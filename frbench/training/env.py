@@ -40,6 +40,7 @@ from frbench.tasks.observations import flatten, projected_gravity, proprioceptio
 from frbench.tasks.success import StepSignals, SuccessTracker
 from frbench.terrains import FAMILIES
 from frbench.training.curriculum import TerrainCurriculum
+from frbench.training.demo_starts import assist_probability, record_demo_starts
 from frbench.training.height_raster import HeightRaster
 from frbench.training.randomization import CONTROL_RANGES, morphology_specs, sample_morphologies, sample_physics
 from frbench.training.rewards import RewardConfig, RewardInputs, compute_rewards
@@ -104,6 +105,14 @@ class TrainEnvConfig:
     reward: RewardConfig = field(default_factory=training_reward_config)
     history: int = 5
     seed: int = 0
+    #: Starting states along a getting-up motion (`demo_starts`): the fraction of episodes that start from
+    #: a recorded ``scripted`` state, falling linearly to 0 at ``demo_start_until`` env steps (0: off).
+    demo_start_fraction: float = 0.0
+    demo_start_until: float = 0.0
+    #: Re-record the bank every this many episodes, from ``demo_steps`` control steps, one snapshot per ``demo_stride``.
+    demo_refresh_episodes: int = 10
+    demo_steps: int = 300
+    demo_stride: int = 5
 
 
 def _yaw(quat: np.ndarray) -> np.ndarray:
@@ -135,6 +144,10 @@ class RecoveryTrainingEnv(VecEnv):
         self.lower, self.upper = np.asarray(self.spec.joint_lower), np.asarray(self.spec.joint_upper)
         self.reward_cfg = self._reward_config(cfg.reward)
         self.last_episode_stats: dict[str, float] = {}
+        self.env_steps = 0  # env steps taken so far (N per control step); the run restores it on --resume
+        self.demo_bank = None
+        self._episodes_since_demo = 0
+        self.from_demo = np.zeros(n, dtype=bool)
         self._reset_all()
 
     # ------------------------------------------------------------------ set-up
@@ -184,6 +197,32 @@ class RecoveryTrainingEnv(VecEnv):
 
     # ------------------------------------------------------------------ episodes
     def _reset_all(self) -> None:
+        """New episodes for every environment: fresh fallen starts, a fraction of them replaced by bank states."""
+        cfg = self.cfg_obj
+        fraction = assist_probability(cfg.demo_start_fraction, cfg.demo_start_until, self.env_steps)
+        if fraction > 0.0 and (self.demo_bank is None or self._episodes_since_demo >= cfg.demo_refresh_episodes):
+            self._fresh_starts()
+            self.demo_bank = record_demo_starts(self.backend, self.specs, self.assignment, self.tile_row,
+                                                cfg.demo_steps, cfg.demo_stride)
+            self._episodes_since_demo = 0
+        self._episodes_since_demo += 1
+        self._fresh_starts()
+        self.from_demo = (self.rng.random(self.num_envs) < fraction) & (
+            self.demo_bank.valid if self.demo_bank is not None else False)
+        if self.from_demo.any():
+            ids = np.flatnonzero(self.from_demo)
+            state, targets, tiles = self.demo_bank.sample(ids, self.rng)
+            self.backend.reset(ids, state)
+            self.tile_row[ids] = tiles
+            self.action[ids] = (targets - self.default_pose) / cfg.action_scale
+            self.state = self.backend.state()
+            self.contacts = self.backend.contacts()
+            self.init_xy = self.state.base_pos[:, :2].copy()
+        o_t = self._o_t()
+        self.history = np.repeat(o_t[:, None, :], cfg.history, axis=1)
+
+    def _fresh_starts(self) -> None:
+        """Fallen starts on every environment's curriculum tile, settled for ``settle_steps`` on soft gains."""
         n, cfg = self.num_envs, self.cfg_obj
         tiles = list(zip(self.curriculum.family.tolist(), self.curriculum.level.tolist()))
         self.tile_row = np.array([self.raster.index[t] for t in tiles])
@@ -212,8 +251,6 @@ class RecoveryTrainingEnv(VecEnv):
         self.success = SuccessTracker(n, self.spec.kind, self.nominal_height)
         self.step_count = 0
         self.episode_length_buf.zero_()
-        o_t = self._o_t()
-        self.history = np.repeat(o_t[:, None, :], cfg.history, axis=1)
 
     # ------------------------------------------------------------------ observations
     def _o_t(self) -> np.ndarray:
@@ -295,6 +332,7 @@ class RecoveryTrainingEnv(VecEnv):
             displacement=np.linalg.norm(s.base_pos[:, :2] - self.init_xy, axis=1),
         ), alive=alive)
         self.step_count += 1
+        self.env_steps += n
         self.episode_length_buf += 1
         o_t = self._o_t()
         self.history = np.concatenate([self.history[:, 1:], o_t[:, None, :]], axis=1)
@@ -304,8 +342,9 @@ class RecoveryTrainingEnv(VecEnv):
             success = self.success.success.copy()
             self.last_episode_stats = self._episode_stats(success, alive)
             log.update({f"/episode/{k}": v for k, v in self.last_episode_stats.items()})
-            if self.cfg_obj.curriculum:
-                self.curriculum.update(np.arange(n), success)
+            if self.cfg_obj.curriculum:  # the curriculum judges fallen starts only
+                fallen = np.flatnonzero(~self.from_demo)
+                self.curriculum.update(fallen, success[fallen])
             log.update({f"/curriculum/{k}": float(v) for k, v in self.curriculum.stats().items()})
             self._reset_all()
             o_t = self._o_t()
@@ -315,11 +354,16 @@ class RecoveryTrainingEnv(VecEnv):
         return obs, torch.as_tensor(reward, dtype=torch.float32), dones, extras
 
     def _episode_stats(self, success: np.ndarray, alive: np.ndarray) -> dict[str, float]:
-        """Success rate overall, per family (all levels) and on flat ground; diverged fraction."""
-        stats = {"success_all": float(success.mean()), "diverged": float((~alive).mean()),
-                 "mean_level": float(self.curriculum.level.mean())}
+        """Success rate of the episodes from fallen starts, overall and per family (all levels); the
+        diverged fraction; with demo starts, their share and their success rate."""
+        fallen = ~self.from_demo
+        stats = {"success_all": float(success[fallen].mean()) if fallen.any() else 0.0,
+                 "diverged": float((~alive).mean()), "mean_level": float(self.curriculum.level.mean())}
+        if self.from_demo.any():
+            stats["demo_start_share"] = float(self.from_demo.mean())
+            stats["success_demo_starts"] = float(success[self.from_demo].mean())
         for f, family in enumerate(self.cfg_obj.families):
-            mine = self.curriculum.family == f
+            mine = (self.curriculum.family == f) & fallen
             if mine.any():
                 stats[f"success_{family}"] = float(success[mine].mean())
         return stats

@@ -114,6 +114,7 @@ class TrainingRun:
         state = torch.load(self.out / STATE_FILE, weights_only=False)
         self.iteration, self.env_steps, self.wall = state["iteration"], state["env_steps"], state["wall"]
         self.env.curriculum.load_state_dict(state["curriculum"])
+        self.env.env_steps = self.env_steps
         self.env.rng.bit_generator.state = state["rng"]
         self.progress = json.loads((self.out / PROGRESS_FILE).read_text()) if (self.out / PROGRESS_FILE).is_file() else []
         self.runner.current_learning_iteration = self.iteration
