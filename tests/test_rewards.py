@@ -52,7 +52,9 @@ def test_paper_weights_exactly_the_table():
         "action_smoothing": -0.01,
         "joint_torques": -5e-4,
     }
-    assert set(R.REWARD_TERMS) == set(R.PAPER_WEIGHTS) | {"base_height"}  # frbench's one addition
+    # frbench's additions: a base-height term for every robot, four humanoid terms
+    assert set(R.REWARD_TERMS) == set(R.PAPER_WEIGHTS) | {"base_height", "head_height", "feet_on_ground",
+                                                          "upper_body_posture", "action_jerk"}
     assert R.RewardConfig().weights == R.PAPER_WEIGHTS
     assert R.stability_terms == ("safety_force", "body_bias")
 
@@ -134,6 +136,8 @@ def test_joint_acceleration_velocity_smoothing_torques():
 def test_every_term_returns_float_n():
     x = make_inputs(5)
     x.base_height, x.nominal_height = np.full(5, 0.2), 0.3
+    x.head_height, x.nominal_head_height = np.full(5, 0.5), 1.2
+    x.action_prev2, x.upper_body = np.zeros((5, J)), np.arange(J) >= 8
     for name, fn in R.REWARD_TERMS.items():
         value = fn(x)
         assert value.shape == (5,), name
@@ -228,3 +232,41 @@ def test_base_height_term_is_height_over_nominal_clipped():
         init_xy=np.zeros((n, 2)), base_height=np.array([0.15, 0.45, -0.1]), nominal_height=0.3,
     )
     np.testing.assert_allclose(R.base_height(x), [0.5, 1.0, 0.0])
+
+
+# --------------------------------------------------------------------------- humanoid terms
+
+
+def test_head_height_is_height_over_nominal_clipped():
+    x = make_inputs(3, head_height=np.array([0.3, 1.2, 2.0]), nominal_head_height=1.2)
+    np.testing.assert_allclose(R.head_height(x), [0.25, 1.0, 1.0])
+    with pytest.raises(ValueError, match="head_height needs RewardInputs.head_height"):
+        R.head_height(make_inputs())
+
+
+def test_feet_on_ground_counts_only_once_risen():
+    feet = np.array([[True, True], [True, False], [True, True]])
+    x = make_inputs(3, foot_contact=feet, base_height=np.array([0.7, 0.7, 0.3]), nominal_height=0.78)
+    # half-height gate at 0.39 m: the third robot lies with its soles down and earns nothing
+    np.testing.assert_allclose(R.feet_on_ground(x), [1.0, 0.5, 0.0])
+
+
+def test_upper_body_posture_reads_only_the_masked_joints_and_is_gated():
+    mask = np.zeros(J, dtype=bool)
+    mask[-4:] = True
+    q_stand = np.linspace(-1.0, 1.0, J)
+    q = np.tile(q_stand, (3, 1))
+    q[1, -1] += 0.5  # an arm joint 0.5 rad off: exp(-0.25)
+    q[:, 0] += 1.0  # a leg joint off: not read
+    gravity = np.array([[0, 0, -1.0], [0, 0, -1.0], [0, 0, 1.0]])
+    x = make_inputs(3, q=q, projected_gravity=gravity, upper_body=mask)
+    np.testing.assert_allclose(R.upper_body_posture(x), [1.0, math.exp(-0.25), 0.0])
+
+
+def test_action_jerk_is_the_second_difference():
+    a2, a1, a0 = np.zeros((1, J)), np.full((1, J), 0.1), np.full((1, J), 0.5)
+    x = make_inputs(action=a0, action_prev=a1, action_prev2=a2)
+    # (0.5 - 0.2 + 0)^2 = 0.09 per joint
+    np.testing.assert_allclose(R.action_jerk(x), [J * 0.09])
+    constant_velocity = make_inputs(action=np.full((1, J), 0.2), action_prev=a1, action_prev2=a2)
+    np.testing.assert_allclose(R.action_jerk(constant_velocity), [0.0], atol=1e-15)

@@ -114,3 +114,36 @@ def test_train_refuses_to_overwrite_a_run(tmp_path):
     (tmp_path / "config.json").write_text("{}")
     with pytest.raises(FrbenchError, match="a run is already there; use --resume"):
         TrainingRun(tmp_path, "frnet", TrainEnvConfig(num_envs=2), total_steps=10)
+
+
+def test_a_humanoid_residual_policy_trains_and_adds_its_action_to_the_base_controller(tmp_path):
+    from frbench.policies.registry import load_policy
+    from frbench.robots import get_robot
+    from frbench.training.env import humanoid_reward_config
+    from frbench.training.run import TrainingRun
+
+    cfg = TrainEnvConfig(num_envs=2, robot="g1", randomize=False, families=("flat",), episode_steps=4, settle_steps=2,
+                         reward=humanoid_reward_config(), base_controller="zero", action_scale=0.25)
+    run = TrainingRun(tmp_path / "g1", "ppo", cfg, total_steps=2 * 24, checkpoint_every=1)
+    obs = run.env.get_observations()
+    assert obs["policy"].shape == (2, 6 + 3 * 29) and obs["history"].shape == (2, 5 * (6 + 3 * 29))
+    run.train(progress_bar=False)
+    assert run.env_steps == 48
+    logged = run.env.reward_cfg.weights
+    assert {"head_height", "feet_on_ground", "upper_body_posture", "action_jerk"} <= set(logged)
+    assert "feet_contact" not in logged
+    assert 1.1 < run.env.nominal_head_height < 1.35  # the G1's head centre stands about 1.23 m high
+
+    spec = get_robot("g1")
+    policy = load_policy(str(tmp_path / "g1"))
+    assert policy.supports(spec) and not policy.supports(get_robot("go2"))
+    policy.reset(spec, 2)
+    state = {"base_angvel": np.zeros((2, 3)), "projected_gravity": np.tile([0.0, 0.0, -1.0], (2, 1)),
+             "joint_pos": np.tile(spec.default_pose, (2, 1)), "joint_vel": np.zeros((2, 29)),
+             "previous_action": np.tile(spec.default_pose, (2, 1))}
+    targets = policy.act(state)
+    base = load_policy("zero")
+    base.reset(spec, 2)
+    # q* = base(o) + 0.25 · a
+    np.testing.assert_allclose(targets, base.act(state) + 0.25 * policy.action, atol=1e-12)
+    assert targets.shape == (2, 29) and np.abs(policy.action).max() > 0

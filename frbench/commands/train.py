@@ -28,6 +28,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "(annealed to 0 at --demo-until; default 0: off)")
     p.add_argument("--demo-until", type=float, default=None, metavar="STEPS",
                    help="env steps at which the demo-start fraction reaches 0 (default: half the budget)")
+    p.add_argument("--base-controller", default=None, metavar="POLICY",
+                   help="train a residual over this policy's joint targets (e.g. scripted-humanoid)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--checkpoint-every", type=int, default=20, help="iterations between checkpoints")
     p.add_argument("--out", type=Path, default=None, help="run folder (default runs/<method>)")
@@ -66,12 +68,18 @@ def run(args) -> int:
         if args.action_scale is not None and args.action_scale <= 0:
             raise FrbenchError(f"--action-scale {args.action_scale}: expected a positive number")
         reward = training_reward_config()
+        if args.robots:
+            from frbench.robots import get_robot
+            from frbench.training.env import humanoid_reward_config
+
+            if get_robot(args.robots).kind == "humanoid":
+                reward = humanoid_reward_config()
         if args.no_stability:
             reward = reward.without(STABILITY_TERMS, "stability-reward ablation (--no-stability)")
         env_cfg = TrainEnvConfig(
             num_envs=args.envs, backend=args.backend, robot=args.robots, num_morphologies=args.morphologies,
             episode_steps=args.episode_steps, families=families, curriculum=not args.no_curriculum,
-            reward=reward, seed=args.seed, demo_start_fraction=args.demo_starts,
+            reward=reward, seed=args.seed, demo_start_fraction=args.demo_starts, base_controller=args.base_controller,
             demo_start_until=args.demo_until if args.demo_until is not None else args.steps / 2,
             **({"action_scale": args.action_scale} if args.action_scale is not None else {}),
         )

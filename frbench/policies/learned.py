@@ -17,9 +17,14 @@ from frbench.errors import PolicyError
 from frbench.robots.spec import RobotSpec
 from frbench.tasks.observations import flatten
 
-#: Widths of the observation groups the training env provides (see frbench.training.env).
-GROUP_WIDTHS = {"policy": 42, "history": 5 * 42, "privileged": 277, "mass": 4, "contact": 13, "velocity": 3, "extrinsics": 11}
+#: The observation groups a deployed policy gets: o_t (6 + 3J) and its history (H frames).
 DEPLOYABLE_GROUPS = {"policy", "history"}
+
+
+def deployable_group_widths(num_actions: int, frames: int) -> dict[str, int]:
+    """Widths of the deployable groups for a robot with ``num_actions`` joints (see frbench.training.env)."""
+    frame = 6 + 3 * num_actions
+    return {"policy": frame, "history": frames * frame}
 
 
 def policy_name(method: str, checkpoint: Path) -> str:
@@ -32,7 +37,7 @@ def policy_name(method: str, checkpoint: Path) -> str:
 
 
 class LearnedPolicy:
-    """A trained quadruped recovery policy (proprioception only)."""
+    """A trained recovery policy (proprioception only), optionally a residual over a base controller."""
 
     def __init__(self, data: dict, path: Path):
         import torch
@@ -53,10 +58,14 @@ class LearnedPolicy:
             )
         self.action_scale = float(data["action_scale"])
         self.frames = int(data["history"])
+        self.num_actions = int(data.get("num_actions", 12))
+        self.robot_kind = str(data.get("robot_kind", "quadruped"))
+        self.base_controller_name = config["env"].get("base_controller")
         actor_cfg = dict(train_cfg["actor"])
         actor_class = resolve_callable(actor_cfg.pop("class_name"))
-        dummy = TensorDict({g: torch.zeros(1, w) for g, w in GROUP_WIDTHS.items()}, batch_size=[1])
-        self.actor = actor_class(dummy, train_cfg["obs_groups"], "actor", 12, **actor_cfg)
+        widths = deployable_group_widths(self.num_actions, self.frames)
+        dummy = TensorDict({g: torch.zeros(1, w) for g, w in widths.items()}, batch_size=[1])
+        self.actor = actor_class(dummy, {"actor": self.groups}, "actor", self.num_actions, **actor_cfg)
         try:
             self.actor.load_state_dict(data["actor_state_dict"])
         except RuntimeError as exc:
@@ -64,18 +73,28 @@ class LearnedPolicy:
         self.actor.eval()
         self._torch, self._TensorDict = torch, TensorDict
 
+        self.base_controller = None
+        if self.base_controller_name:
+            from frbench.policies.registry import load_policy
+
+            self.base_controller = load_policy(self.base_controller_name)
+
     def supports(self, spec: RobotSpec) -> bool:
-        """Quadrupeds with 12 joints (the training robots' structure)."""
-        return spec.kind == "quadruped" and spec.n_joints == 12
+        """Robots of the training robots' kind and joint count (and its base controller's, if residual)."""
+        fits = spec.kind == self.robot_kind and spec.n_joints == self.num_actions
+        return fits and (self.base_controller is None or self.base_controller.supports(spec))
 
     def reset(self, spec: RobotSpec, num_envs: int) -> None:
         """New episodes: empty history, zero previous action."""
         self.default_pose = np.asarray(spec.default_pose)
         self.action = np.zeros((num_envs, spec.n_joints))
         self.history = None
+        if self.base_controller is not None:
+            self.base_controller.reset(spec, num_envs)
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        """Joint targets (N, 12) [rad] from the proprioception dict."""
+        """Joint targets (N, J) [rad] from the proprioception dict: q̊ (or the base controller's targets,
+        for a residual policy) + action_scale · a."""
         o_t = flatten(obs, self.default_pose)
         o_t[:, -self.action.shape[1]:] = self.action
         if self.history is None:
@@ -91,7 +110,8 @@ class LearnedPolicy:
         with torch.inference_mode():
             action = self.actor(td).numpy().astype(np.float64)
         self.action = np.clip(action, -10.0, 10.0)
-        return self.default_pose + self.action_scale * self.action
+        base = self.default_pose if self.base_controller is None else np.asarray(self.base_controller.act(obs))
+        return base + self.action_scale * self.action
 
 
 def load_learned_policy(data: dict, path: Path) -> LearnedPolicy:

@@ -24,8 +24,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from frbench.backends.base import RobotState
-from frbench.policies.scripted import ScriptedPolicy
 from frbench.tasks.observations import projected_gravity
+
+#: The model-based controller whose getting-up motion is recorded, per robot kind (policy names).
+DEMO_CONTROLLERS = {"quadruped": "scripted", "humanoid": "scripted-humanoid"}
 
 
 @dataclass
@@ -58,7 +60,7 @@ class DemoStartBank:
 
 def record_demo_starts(backend, specs, assignment: np.ndarray, tile_row: np.ndarray, steps: int,
                        stride: int) -> DemoStartBank:
-    """Run ``scripted`` on every environment of ``backend`` from its current state for ``steps`` control steps.
+    """Run ``scripted`` (``scripted-humanoid`` for humanoids) on every environment of ``backend`` from its current state for ``steps`` control steps.
 
     Args:
         backend: a batched backend whose N environments hold fresh fallen starts.
@@ -67,10 +69,12 @@ def record_demo_starts(backend, specs, assignment: np.ndarray, tile_row: np.ndar
         tile_row: (N,) the tile each environment lies on (kept with the snapshots).
         steps: control steps to run; ``stride``: a snapshot every ``stride`` steps.
     """
+    from frbench.policies.registry import load_policy
+
     groups = [np.flatnonzero(assignment == k) for k in range(len(specs))]
     controllers = []
     for k, ids in enumerate(groups):
-        controller = ScriptedPolicy()
+        controller = load_policy(DEMO_CONTROLLERS[specs[k].kind])
         controller.reset(specs[k], len(ids))
         controllers.append(controller)
     n, n_joints = len(assignment), specs[0].n_joints

@@ -77,6 +77,32 @@ def training_reward_config() -> "RewardConfig":
     return dataclasses.replace(config, posture_sigma2=POSTURE_SIGMA2)
 
 
+HUMANOID_REASONS = {
+    "feet_contact": "humanoids: replaced by feet_on_ground, which pays only once the base has risen (a G1 lying "
+                    "with its soles on the floor would otherwise be paid for it)",
+    "head_height": "humanoid term (HoST, HumanUP): pays for lifting the head, the signal of sitting and rising up",
+    "feet_on_ground": "humanoid term: both feet under the robot once it has risen",
+    "upper_body_posture": "humanoid term: waist and arms back to their standing pose once upright",
+    "action_jerk": "humanoid term: HoST's smoothness (second difference of the actions)",
+}
+
+
+def humanoid_reward_config() -> "RewardConfig":
+    """frbench's quadruped training rewards plus the humanoid terms (each with its reason); see docs/training.md."""
+    config = training_reward_config().without(("feet_contact",), HUMANOID_REASONS["feet_contact"])
+    for term, weight in (("head_height", 2.0), ("feet_on_ground", 1.0), ("upper_body_posture", 1.0),
+                         ("action_jerk", -0.01)):
+        config = config.with_weight(term, weight, HUMANOID_REASONS[term])
+    return config
+
+
+#: The humanoid's "head": a point this far [m] above the torso link's origin along its z axis (the G1's head
+#: centre stands about 1.23 m above flat ground in the default pose).
+HEAD_FRAME, HEAD_OFFSET_M = "torso_link", 0.40
+#: Joint-name fragments of a humanoid's legs; every other joint belongs to the upper body (waist, arms).
+LEG_JOINT_WORDS = ("hip", "knee", "ankle")
+
+
 #: Gain ranges of frbench's training (the paper: Kp [20, 80], Kd [0.6, 2.0]); see docs/training.md.
 TRAINING_GAIN_RANGES = {"kp": (50.0, 80.0), "kd": (1.0, 2.0)}
 GAIN_RANGE_REASON = (
@@ -113,6 +139,9 @@ class TrainEnvConfig:
     demo_refresh_episodes: int = 10
     demo_steps: int = 300
     demo_stride: int = 5
+    #: A policy name (e.g. ``"scripted-humanoid"``) whose joint targets the learned action is added to:
+    #: q* = base(o) + action_scale·a (a residual policy); None: q* = q̊ + action_scale·a.
+    base_controller: str | None = None
 
 
 def _yaw(quat: np.ndarray) -> np.ndarray:
@@ -176,6 +205,18 @@ class RecoveryTrainingEnv(VecEnv):
         self.nominal_height = np.array([s.nominal_height for s in specs])[self.assignment]
         self._pin = [ground_truth.load(s) for s in specs]
         self._pin_data = [p.model.createData() for p in self._pin]
+        self.humanoid = self.spec.kind == "humanoid"
+        self.upper_body = np.array([not any(w in name for w in LEG_JOINT_WORDS) for name in self.spec.joint_names])
+        if self.humanoid:
+            standing = RobotState.standing(self.spec, 1, clearance=0.0)
+            self.nominal_head_height = float(self._head_positions(standing, [0])[0, 2])
+        self.controller = None
+        if self.cfg_obj.base_controller:
+            from frbench.policies.registry import load_policy
+
+            self.controller = load_policy(self.cfg_obj.base_controller)
+            if not self.controller.supports(self.spec):
+                raise ValueError(f"base_controller {self.cfg_obj.base_controller!r} does not support {self.spec.name!r}")
 
     def _reward_config(self, reward: RewardConfig) -> RewardConfig:
         """The velocity-limit threshold read as legged_gym does: 0.8 × each joint's URDF velocity limit.
@@ -218,8 +259,17 @@ class RecoveryTrainingEnv(VecEnv):
             self.state = self.backend.state()
             self.contacts = self.backend.contacts()
             self.init_xy = self.state.base_pos[:, :2].copy()
+        self.action_prev = self.action.copy()  # a_{t-1} while self.action is a_t; both zero at a fresh start
+        if self.controller is not None:
+            self.controller.reset(self.spec, self.num_envs)
         o_t = self._o_t()
         self.history = np.repeat(o_t[:, None, :], cfg.history, axis=1)
+
+    def _base_targets(self) -> np.ndarray:
+        """q̊ (J,), or the base controller's targets (N, J) [rad] for the current state (residual policies)."""
+        if self.controller is None:
+            return self.default_pose
+        return np.asarray(self.controller.act(proprioception(self.state, self.default_pose)), dtype=np.float64)
 
     def _fresh_starts(self) -> None:
         """Fallen starts on every environment's curriculum tile, settled for ``settle_steps`` on soft gains."""
@@ -275,6 +325,21 @@ class RecoveryTrainingEnv(VecEnv):
         c, si = np.cos(yaw), np.sin(yaw)
         return np.stack([c * delta[:, 0] + si * delta[:, 1], -si * delta[:, 0] + c * delta[:, 1]], axis=1)
 
+    def _head_positions(self, state: RobotState, rows=None) -> np.ndarray:
+        """World head positions (M, 3) [m] of the robots in ``rows`` (default all; ``state`` has M rows), by Pinocchio."""
+        import pinocchio
+
+        rows = range(self.num_envs) if rows is None else rows
+        out = np.zeros((len(state.base_pos), 3))
+        for m, i in enumerate(rows):
+            robot = self._pin[self.assignment[i]]
+            data = self._pin_data[self.assignment[i]]
+            config = ground_truth.configuration(robot, state.base_pos[m], state.base_quat[m], state.q[m])
+            pinocchio.framesForwardKinematics(robot.model, data, config)
+            frame = data.oMf[robot.model.getFrameId(HEAD_FRAME)]
+            out[m] = frame.translation + frame.rotation[:, 2] * HEAD_OFFSET_M
+        return out
+
     def _observations(self, o_t: np.ndarray) -> TensorDict:
         s, c, p = self.state, self.contacts, self.params
         scan = self.raster.scan(self.tile_row, s.base_pos, _yaw(s.base_quat))
@@ -308,9 +373,10 @@ class RecoveryTrainingEnv(VecEnv):
     def step(self, actions: torch.Tensor):
         """One control step for every environment (rsl-rl `VecEnv.step`)."""
         n = self.num_envs
-        action_prev = self.action
+        action_prev2, action_prev = self.action_prev, self.action
+        self.action_prev = action_prev
         self.action = np.clip(actions.detach().cpu().numpy().astype(np.float64), -10.0, 10.0)
-        targets = np.clip(self.default_pose + self.cfg_obj.action_scale * self.action, self.lower, self.upper)
+        targets = np.clip(self._base_targets() + self.cfg_obj.action_scale * self.action, self.lower, self.upper)
         self.qd_prev = self.state.qd
         self.backend.step(targets)
         self.state, self.contacts = self.backend.state(), self.backend.contacts()
@@ -322,8 +388,12 @@ class RecoveryTrainingEnv(VecEnv):
             action_prev=action_prev, q_stand=self.default_pose, q_lower=self.lower, q_upper=self.upper,
             foot_contact=c.foot_contact, body_contact=c.group_contact.any(axis=1), knee_force_xy=c.knee_force_xy,
             base_xy=s.base_pos[:, :2], init_xy=self.init_xy, base_height=s.base_pos[:, 2] - ground,
-            nominal_height=self.nominal_height,
+            nominal_height=self.nominal_height, action_prev2=action_prev2, upper_body=self.upper_body,
         )
+        if self.humanoid:
+            head = self._head_positions(s)
+            inputs.head_height = head[:, 2] - self.raster.lookup(self.tile_row, head[:, None, :2])[:, 0]
+            inputs.nominal_head_height = self.nominal_head_height
         reward, terms = compute_rewards(inputs, self.reward_cfg)
         alive = ~self.backend.diverged
         reward = np.where(alive, np.nan_to_num(reward), 0.0)

@@ -25,6 +25,18 @@ joint_torques         Σ_j τ_j² [N²·m²]                                    
 ``g`` is the projected gravity, the unit gravity direction in the body frame
 ((0, 0, −1) when upright, (0, 0, +1) on the back).
 
+frbench adds terms the table does not have (each needs a reason in the config):
+
+====================  =====================================================  ==========
+term                  value (unweighted)                                     used for
+====================  =====================================================  ==========
+base_height           clip(h_base / h_nominal, 0, 1)                          all robots
+head_height           clip(h_head / h_head,nominal, 0, 1)                     humanoids
+feet_on_ground        fraction of feet in contact, 0 while h_base < h_nom/2   humanoids
+upper_body_posture    exp(−Σ_upper (q − q_stand)²) if |g_z + 1| < ε else 0    humanoids
+action_jerk           Σ_j (a_t − 2 a_t−1 + a_t−2)²  (HoST's smoothness)        humanoids
+====================  =====================================================  ==========
+
 Readings where the paper is ambiguous
 -------------------------------------
 * **ε** (:data:`DEFAULT_EPSILON` = 0.4). The paper writes the upright term with
@@ -75,12 +87,15 @@ __all__ = [
     "STABILITY_TERMS",
     "RewardConfig",
     "RewardInputs",
+    "action_jerk",
     "action_smoothing",
     "base_orientation",
     "body_bias",
     "body_contact",
     "compute_rewards",
     "feet_contact",
+    "feet_on_ground",
+    "head_height",
     "joint_acceleration",
     "joint_torques",
     "joint_velocity",
@@ -88,6 +103,7 @@ __all__ = [
     "safety_force",
     "stability_terms",
     "target_posture",
+    "upper_body_posture",
     "upright_orientation",
     "velocity_limit",
 ]
@@ -144,6 +160,10 @@ class RewardInputs:
         base_height: (N,) base height above the terrain beneath it [m] (only
             the frbench ``base_height`` term reads it).
         nominal_height: (N,) or scalar standing base height [m].
+        head_height: (N,) head height above the terrain beneath it [m] (humanoid terms).
+        nominal_head_height: (N,) or scalar standing head height [m].
+        action_prev2: (N, J) the action before the previous one, a_{t−2} (``action_jerk``).
+        upper_body: (J,) bool, the joints of the waist and arms (``upper_body_posture``).
     """
 
     projected_gravity: np.ndarray
@@ -164,6 +184,10 @@ class RewardInputs:
     dt: float = 0.02
     base_height: np.ndarray | None = None
     nominal_height: np.ndarray | float | None = None
+    head_height: np.ndarray | None = None
+    nominal_head_height: np.ndarray | float | None = None
+    action_prev2: np.ndarray | None = None
+    upper_body: np.ndarray | None = None
 
     @property
     def num_envs(self) -> int:
@@ -299,6 +323,47 @@ def base_height(x: RewardInputs) -> np.ndarray:
     return np.clip(np.asarray(x.base_height, dtype=np.float64) / np.asarray(x.nominal_height, dtype=np.float64), 0.0, 1.0)
 
 
+# --------------------------------------------------------------------------- humanoid terms
+
+
+def _needs(x: RewardInputs, term: str, *names: str) -> None:
+    missing = [n for n in names if getattr(x, n) is None]
+    if missing:
+        raise ValueError(f"{term} needs RewardInputs.{' and '.join(missing)}")
+
+
+def head_height(x: RewardInputs) -> np.ndarray:
+    """clip(h_head / h_head,nominal, 0, 1): how far the head has risen towards standing (HoST, HumanUP)."""
+    _needs(x, "head_height", "head_height", "nominal_head_height")
+    ratio = np.asarray(x.head_height, dtype=np.float64) / np.asarray(x.nominal_head_height, dtype=np.float64)
+    return np.clip(ratio, 0.0, 1.0)
+
+
+def feet_on_ground(x: RewardInputs) -> np.ndarray:
+    """Fraction of the feet touching the ground, counted only once the base is above half its standing height
+    (a robot lying with its soles on the floor earns nothing)."""
+    _needs(x, "feet_on_ground", "base_height", "nominal_height")
+    fraction = np.asarray(x.foot_contact, dtype=bool).mean(axis=1)
+    risen = np.asarray(x.base_height, dtype=np.float64) >= 0.5 * np.asarray(x.nominal_height, dtype=np.float64)
+    return np.where(risen, fraction, 0.0)
+
+
+def upper_body_posture(x: RewardInputs, epsilon: float = DEFAULT_EPSILON) -> np.ndarray:
+    """exp(−Σ_{waist, arms} (q − q_stand)²) [rad²] while upright (|g_z + 1| < ε), else 0."""
+    _needs(x, "upper_body_posture", "upper_body")
+    gz = np.asarray(x.projected_gravity, dtype=np.float64)[:, 2]
+    mask = np.asarray(x.upper_body, dtype=bool)
+    error = (np.asarray(x.q, dtype=np.float64) - x.q_stand)[:, mask]
+    return np.where(np.abs(gz + 1.0) < epsilon, np.exp(-_sum_sq(error)), 0.0)
+
+
+def action_jerk(x: RewardInputs) -> np.ndarray:
+    """Σ_j (a_t − 2 a_{t−1} + a_{t−2})², the second difference of the actions (HoST's smoothness term)."""
+    _needs(x, "action_jerk", "action_prev2")
+    a = np.asarray(x.action, dtype=np.float64)
+    return _sum_sq(a - 2.0 * np.asarray(x.action_prev, dtype=np.float64) + np.asarray(x.action_prev2, dtype=np.float64))
+
+
 #: Term name → function of the inputs (parameterised terms at their defaults).
 REWARD_TERMS: dict[str, Callable[[RewardInputs], np.ndarray]] = {
     "base_orientation": base_orientation,
@@ -315,6 +380,10 @@ REWARD_TERMS: dict[str, Callable[[RewardInputs], np.ndarray]] = {
     "action_smoothing": action_smoothing,
     "joint_torques": joint_torques,
     "base_height": base_height,
+    "head_height": head_height,
+    "feet_on_ground": feet_on_ground,
+    "upper_body_posture": upper_body_posture,
+    "action_jerk": action_jerk,
 }
 
 # Terms that take a parameter from the config: name → config → keyword arguments.
@@ -322,6 +391,7 @@ _TERM_KWARGS: dict[str, Callable[["RewardConfig"], dict]] = {
     "upright_orientation": lambda c: {"epsilon": c.epsilon},
     "target_posture": lambda c: {"epsilon": c.epsilon, "sigma2": c.posture_sigma2},
     "velocity_limit": lambda c: {"threshold": c.velocity_threshold},
+    "upper_body_posture": lambda c: {"epsilon": c.epsilon},
 }
 
 

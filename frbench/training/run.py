@@ -130,7 +130,8 @@ class TrainingRun:
                             "curriculum": self.env.curriculum.state_dict(), "rng": self.env.rng.bit_generator.state},
                            self.out / STATE_FILE)
         actor = self.runner.alg.get_policy()
-        _atomic_torch_save(policy_checkpoint(self.method, self.config, actor, self.iteration, self.env_steps, self.wall),
+        _atomic_torch_save(policy_checkpoint(self.method, self.config, actor, self.iteration, self.env_steps, self.wall,
+                                             self.env.num_actions, self.env.spec.kind),
                            self.out / POLICY_FILE)
         atomic_write_text(self.out / PROGRESS_FILE, json.dumps(self.progress, indent=1) + "\n")
         for old in self.out.glob("model_*.pt"):  # rsl-rl's own per-call saves; runner.pt supersedes them
@@ -160,7 +161,8 @@ class TrainingRun:
         draw_curve(self.progress, self.out / "curve.png", title=f"{self.method} ({self.out.name})")
 
 
-def policy_checkpoint(method: str, config: dict, actor, iteration: int, env_steps: int, wall: float) -> dict:
+def policy_checkpoint(method: str, config: dict, actor, iteration: int, env_steps: int, wall: float,
+                      num_actions: int = 12, robot_kind: str = "quadruped") -> dict:
     """The frbench policy checkpoint: plain tensors and JSON-able values only (``weights_only`` loadable)."""
     env = config["env"]
     return {
@@ -170,6 +172,8 @@ def policy_checkpoint(method: str, config: dict, actor, iteration: int, env_step
         "actor_state_dict": {k: v.detach().cpu().clone() for k, v in actor.state_dict().items()},
         "action_scale": float(env["action_scale"]),
         "history": int(env["history"]),
+        "num_actions": int(num_actions),
+        "robot_kind": robot_kind,
         "iteration": int(iteration),
         "env_steps": int(env_steps),
         "wall_s": float(wall),
