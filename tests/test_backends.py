@@ -155,3 +155,37 @@ def test_pd_torque_is_clipped_to_the_effort_limit():
         sim.close()
         assert np.all(np.abs(tau) <= np.asarray(spec.torque_limits) + 1e-9), backend
         assert np.any(np.isclose(np.abs(tau), spec.torque_limits)), backend
+
+
+def test_actuator_torque_with_motor_friction_by_hand():
+    from frbench.backends.base import MOTOR_FRICTION_VELOCITY, actuator_torque
+
+    spec = get_robot("go2")
+    params = PhysicsParams.nominal(spec, 2)
+    params.kp[:] = 40.0
+    params.kd[:] = 1.0
+    params.motor_friction = np.full((2, 12), 0.5)
+    q, qd, target = np.zeros((2, 12)), np.full((2, 12), 0.2), np.full((2, 12), 0.1)
+    limits = np.asarray(spec.torque_limits)
+    # 40·0.1 − 1·0.2 = 3.8 N·m, minus 0.5·tanh(0.2 / 0.1) = 0.482 N·m
+    expected = 3.8 - 0.5 * np.tanh(0.2 / MOTOR_FRICTION_VELOCITY)
+    np.testing.assert_allclose(actuator_torque(params, limits, target, q, qd), expected)
+    np.testing.assert_allclose(actuator_torque(params, limits, target[1], q[1], qd[1], 1), expected)
+    params.motor_friction = None
+    np.testing.assert_allclose(actuator_torque(params, limits, target, q, qd), 3.8)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_motor_friction_slows_a_limp_robot_collapsing(backend):
+    spec = get_robot("go2")
+    sim = make_backend(backend, spec, 2)
+    params = PhysicsParams.nominal(spec, 2)
+    params.kp[:], params.kd[:] = 0.0, 0.0  # limp: the standing robot folds under its weight
+    params.motor_friction = np.array([np.zeros(12), np.full(12, 5.0)])
+    sim.set_params(params)
+    sim.reset(np.arange(2), RobotState.standing(spec, 2, clearance=0.0))
+    for _ in range(3):
+        sim.step(np.tile(spec.default_pose, (2, 1)))
+    speed = np.abs(sim.state().qd).mean(axis=1)
+    sim.close()
+    assert speed[1] < 0.8 * speed[0], speed  # 5 N·m of friction per joint holds the fold back

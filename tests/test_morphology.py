@@ -317,3 +317,25 @@ def test_inconsistent_limits_and_inertias_raise():
         morph.validate(dataclasses.replace(MorphologyParams(), calf_inertia=(1.0, -1.0, 1.0)))
     with pytest.raises(ValueError, match="trunk_mass"):
         morph.sample(np.random.default_rng(0), base=dataclasses.replace(MorphologyParams(), trunk_mass=-2.0))
+
+
+def test_a_trunk_com_shift_moves_the_com_alike_in_pinocchio_mujoco_and_pybullet(tmp_path):
+    from frbench.robots import ground_truth
+    from frbench.robots.check import check_robot
+
+    shift = (0.04, -0.03, 0.02)
+    plain = morph.cached_spec(MorphologyParams(), "plain", tmp_path / "plain.urdf")
+    shifted = morph.cached_spec(dataclasses.replace(MorphologyParams(), trunk_com_shift=shift), "shifted",
+                                tmp_path / "shifted.urdf")
+    assert 'origin xyz="0 0 0"' in morph.urdf_string(MorphologyParams())  # unshifted URDFs unchanged
+    pose = ([0.0, 0.0, 0.5], [1.0, 0.0, 0.0, 0.0], plain.default_pose)
+    moved = ground_truth.center_of_mass(shifted, *pose) - ground_truth.center_of_mass(plain, *pose)
+    total = ground_truth.total_mass(plain)
+    np.testing.assert_allclose(moved, np.array(shift) * MorphologyParams().trunk_mass / total, atol=1e-12)
+    report = check_robot(shifted, n_random=2, stand=False)
+    assert report.max_com_error < 1e-4 and report.max_mass_error < 1e-6
+
+
+def test_a_com_shift_must_be_three_finite_numbers():
+    with pytest.raises(ValueError, match="trunk_com_shift"):
+        morph.validate(dataclasses.replace(MorphologyParams(), trunk_com_shift=(0.0, math.nan, 0.0)))

@@ -11,8 +11,10 @@ knows which simulator runs):
 * Joint arrays (N, n_joints) follow the robot spec's canonical joint order:
   ``q`` [rad], ``qd`` [rad/s], ``tau`` [N·m] (the torque applied at the last
   physics step).
-* Actuation, identical in every backend: at every physics step
-  ``tau = motor_strength · clip(kp (q* − q) − kd qd, ±torque_limit)``.
+* Actuation, identical in every backend (`actuator_torque`): at every physics step
+  ``tau = motor_strength · clip(kp (q* − q) − kd qd, ±torque_limit) − f · tanh(qd / v_f)``,
+  the last term a smoothed Coulomb motor friction of ``motor_friction`` f [N·m]
+  (zero unless domain randomisation sets it; v_f = `MOTOR_FRICTION_VELOCITY`).
   One control period is 0.02 s (50 Hz) = ``control_dt / physics_dt`` physics
   steps; the physics step comes from the robot spec.
 * Contacts (`Contacts`) are read at the last physics step of a control
@@ -118,6 +120,7 @@ class PhysicsParams:
         motor_strength: (N, n_joints) torque scale [-].
         friction: (N,) terrain friction coefficient [-].
         payload: (N,) mass added to the root link at its CoM [kg].
+        motor_friction: (N, n_joints) Coulomb friction torque of each joint [N·m], or None for none.
     """
 
     kp: np.ndarray
@@ -125,6 +128,7 @@ class PhysicsParams:
     motor_strength: np.ndarray
     friction: np.ndarray
     payload: np.ndarray = field(default=None)
+    motor_friction: np.ndarray | None = None
 
     @classmethod
     def nominal(cls, spec: RobotSpec, num_envs: int, friction: float = 1.0) -> "PhysicsParams":
@@ -137,6 +141,24 @@ class PhysicsParams:
             friction=np.full(num_envs, float(friction)),
             payload=np.zeros(num_envs),
         )
+
+
+#: Joint speed [rad/s] over which the motor's Coulomb friction rises smoothly to its full value
+#: (tanh(q̇ / v_f); a sign() would chatter under explicit integration at rest).
+MOTOR_FRICTION_VELOCITY = 0.1
+
+
+def actuator_torque(params: PhysicsParams, limits: np.ndarray, targets: np.ndarray, q: np.ndarray,
+                    qd: np.ndarray, rows=slice(None)) -> np.ndarray:
+    """The joint torques [N·m] of every backend's explicit PD actuator (module docstring), for ``rows``.
+
+    ``targets``, ``q``, ``qd``: the rows' (…, n_joints) arrays; ``limits`` (n_joints,) torque limits [N·m].
+    """
+    kp, kd, strength = params.kp[rows], params.kd[rows], params.motor_strength[rows]
+    tau = strength * np.minimum(np.maximum(kp * (targets - q) - kd * qd, -limits), limits)
+    if params.motor_friction is not None:
+        tau = tau - params.motor_friction[rows] * np.tanh(qd / MOTOR_FRICTION_VELOCITY)
+    return tau
 
 
 class Backend(Protocol):

@@ -19,6 +19,7 @@ from frbench.backends.base import (
     Contacts,
     PhysicsParams,
     RobotState,
+    actuator_torque,
     check_targets,
     divergence_mask,
     summarize_contacts,
@@ -128,8 +129,7 @@ class MujocoBackend:
     def step(self, joint_targets) -> None:
         """One control period: ``substeps`` × (PD torque in numpy, one MuJoCo step)."""
         targets = check_targets(joint_targets, self.num_envs, self.spec.n_joints)
-        kp, kd, strength = self.params.kp, self.params.kd, self.params.motor_strength
-        limits, low = self._limits, -self._limits
+        params, limits = self.params, self._limits
         warnings_before = self.batch.warning[:, _INSTABILITY, 0].sum(axis=1)
         for _ in range(self.substeps):  # the hot loop: keep it lean
             any_diverged = self.diverged.any()
@@ -137,7 +137,7 @@ class MujocoBackend:
             if ids is not None and ids.size == 0:
                 break
             q, qd = self._qpos[:, self._qadr], self._qvel[:, self._dadr]
-            tau = strength * np.minimum(np.maximum(kp * (targets - q) - kd * qd, low), limits)
+            tau = actuator_torque(params, limits, targets, q, qd)
             self._ctrl[:] = np.where(self.diverged[:, None], 0.0, tau) if any_diverged else tau
             try:
                 self.batch.step(ids, nstep=1)

@@ -31,6 +31,7 @@ from frbench.backends.base import (
     Contacts,
     PhysicsParams,
     RobotState,
+    actuator_torque,
     check_targets,
     divergence_mask,
     summarize_contacts,
@@ -171,15 +172,14 @@ class PybulletBackend:
     def step(self, joint_targets) -> None:
         """One control period: ``substeps`` × (PD torque in Python, ``stepSimulation``)."""
         targets = check_targets(joint_targets, self.num_envs, self.spec.n_joints)
-        limits, low = self._limits, -self._limits
+        params, limits = self.params, self._limits
         for i, sim in enumerate(self.sims):
             if self.diverged[i]:
                 continue
-            c, robot, joints = sim.client, sim.robot, sim.joints
-            kp, kd, strength, target = self.params.kp[i], self.params.kd[i], self.params.motor_strength[i], targets[i]
+            c, robot, joints, target = sim.client, sim.robot, sim.joints, targets[i]
             for _ in range(self.substeps):  # the hot loop: keep it lean
                 q, qd = _joint_arrays(c.getJointStates(robot, joints))
-                tau = strength * np.minimum(np.maximum(kp * (target - q) - kd * qd, low), limits)
+                tau = actuator_torque(params, limits, target, q, qd, i)
                 c.setJointMotorControlArray(robot, joints, p.TORQUE_CONTROL, forces=tau.tolist())
                 c.stepSimulation()
             self._tau[i] = tau

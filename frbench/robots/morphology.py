@@ -236,6 +236,9 @@ class MorphologyParams:
     """Standing thigh angle of the rear legs [rad]."""
     stand_calf: float = -1.5
     """Standing calf angle [rad]."""
+    trunk_com_shift: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """Offset of the trunk's centre of mass from the trunk box centre, base frame [m] (domain
+    randomisation's "CoM shift"; not a morphology range)."""
     kp: float = 20.0
     """PD stiffness of every joint [N·m/rad]."""
     kd: float = 0.5
@@ -305,6 +308,9 @@ def validate(params: MorphologyParams) -> None:
     for name in _INERTIA_FIELDS:
         if getattr(params, name) is not None:
             _check_inertia(name, getattr(params, name))
+    shift = params.trunk_com_shift
+    if len(shift) != 3 or not all(_is_finite_number(v) for v in shift):
+        raise ValueError(f"MorphologyParams.trunk_com_shift must be three finite numbers [m], got {shift!r}")
 
 
 # --------------------------------------------------------------------------- sampling
@@ -477,10 +483,11 @@ def _joint(name: str, parent: str, child: str, xyz: str, axis: str | None = None
 
 
 def _trunk(p: MorphologyParams) -> str:
-    """The ``base`` link: a box centred on the base frame."""
+    """The ``base`` link: a box centred on the base frame, its centre of mass shifted by ``trunk_com_shift``."""
     size = _vec(p.trunk_length, p.trunk_width, p.trunk_height)
     inertia = p.trunk_inertia or box_inertia(p.trunk_mass, p.trunk_length, p.trunk_width, p.trunk_height)
-    return _link("base", p.trunk_mass, "0 0 0", inertia, _geometry("0 0 0", f'box size="{size}"'))
+    centre = _vec(*p.trunk_com_shift) if any(p.trunk_com_shift) else "0 0 0"  # unshifted URDFs stay byte-identical
+    return _link("base", p.trunk_mass, centre, inertia, _geometry("0 0 0", f'box size="{size}"'))
 
 
 def _leg(p: MorphologyParams, leg: str, hip_xy: tuple[float, float],

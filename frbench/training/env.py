@@ -36,16 +36,25 @@ from frbench.backends import make_backend
 from frbench.backends.base import PhysicsParams, RobotState
 from frbench.robots import get_robot, ground_truth
 from frbench.tasks.initial_states import draw_start
-from frbench.tasks.observations import flatten, projected_gravity, proprioception, rotate_to_body
+from frbench.tasks.observations import (
+    flatten,
+    projected_gravity,
+    proprioception,
+    rotate_to_body,
+)
 from frbench.tasks.success import StepSignals, SuccessTracker
 from frbench.terrains import FAMILIES
 from frbench.training.curriculum import TerrainCurriculum
 from frbench.training.demo_starts import assist_probability, record_demo_starts
 from frbench.training.height_raster import HeightRaster
-from frbench.training.randomization import CONTROL_RANGES, morphology_specs, sample_morphologies, sample_physics
+from frbench.training.randomization import (
+    CONTROL_RANGES,
+    morphology_specs,
+    sample_morphologies,
+    sample_physics,
+)
 from frbench.training.rewards import RewardConfig, RewardInputs, compute_rewards
 from frbench.training.terrain_grid import build_grid
-
 
 #: Why frbench's training rewards differ from the paper's table (see docs/training.md).
 MOTION_PENALTY_REASON = (
@@ -122,7 +131,7 @@ class TrainEnvConfig:
     num_morphologies: int = 32
     episode_steps: int = 350
     settle_steps: int = 25
-    action_scale: float = 0.5
+    action_scale: float = 1.0  # the paper's q* = q̊ + a
     families: tuple[str, ...] = FAMILIES
     curriculum: bool = True
     start_level: int = 1
@@ -185,7 +194,12 @@ class RecoveryTrainingEnv(VecEnv):
         if cfg.robot:
             specs = [get_robot(cfg.robot)]
         else:
-            specs = morphology_specs(sample_morphologies(cfg.num_morphologies, self.rng))
+            morphologies = sample_morphologies(cfg.num_morphologies, self.rng)
+            if cfg.randomize:  # the paper's CoM shift, baked into each morphology's trunk inertial
+                shifts = self.rng.uniform(*CONTROL_RANGES["com_shift"], size=(len(morphologies), 3))
+                morphologies = [dataclasses.replace(m, trunk_com_shift=tuple(map(float, d)))
+                                for m, d in zip(morphologies, shifts)]
+            specs = morphology_specs(morphologies)
         self.specs = specs
         self.spec = specs[0]
         self.assignment = np.arange(n) % len(specs)
@@ -284,6 +298,7 @@ class RecoveryTrainingEnv(VecEnv):
         if cfg.randomize:
             self.params = sample_physics(self.spec, n, self.rng, ranges={**CONTROL_RANGES, **cfg.gain_ranges})
             self.params.friction, self.params.payload = self.env_friction.copy(), self.env_payload.copy()
+            self.params.motor_friction = self.rng.uniform(*CONTROL_RANGES["motor_friction"], size=(n, self.spec.n_joints))
         else:
             self.params = PhysicsParams.nominal(self.spec, n)
         soft = PhysicsParams(self.params.kp * 0.3, self.params.kd * 0.3, self.params.motor_strength,
