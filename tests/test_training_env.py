@@ -54,7 +54,8 @@ def test_episodes_end_together_and_the_curriculum_moves(env):
 def test_the_training_reward_keeps_the_papers_weights_visible():
     config = training_reward_config()
     deviations = config.deviations()
-    assert set(deviations) == {"joint_velocity", "joint_acceleration", "joint_torques", "base_height"}
+    assert set(deviations) == {"joint_velocity", "joint_acceleration", "joint_torques", "safety_force", "base_height"}
+    assert config.weights["base_height"] == 6.0 and config.weights["safety_force"] == pytest.approx(-1e-3)
     assert deviations["joint_velocity"][0] == PAPER_WEIGHTS["joint_velocity"] == -1e-2
     assert config.weights["joint_velocity"] == pytest.approx(-1e-3)
     assert config.weights["upright_orientation"] == 6.0

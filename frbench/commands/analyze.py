@@ -1,4 +1,5 @@
-"""``frbench analyze-mcp``: the Mass-Contact Predictor's mass errors and contact accuracy on unseen robots."""
+"""``frbench analyze-mcp`` (the Mass-Contact Predictor's mass errors and contact accuracy on unseen robots) and
+``frbench plot-results`` (success against level per terrain family, from results files)."""
 
 from __future__ import annotations
 
@@ -16,6 +17,28 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--backend", default="mujoco")
     p.add_argument("--out", type=Path, default=Path("docs/mcp"), help="folder for mcp_quality.json and mcp_heatmap.png")
     p.set_defaults(func=run)
+
+    q = sub.add_parser("plot-results", help="success vs level per terrain family (PNG per family + Markdown table)")
+    q.add_argument("results", nargs="+", type=Path, help="results JSON files written by frbench evaluate")
+    q.add_argument("--lines", choices=("robot", "policy"), default="robot",
+                   help="one line per robot (one policy) or per policy (averaged over robots)")
+    q.add_argument("--out", type=Path, required=True, help="folder for success_<family>.png and success.md")
+    q.add_argument("--title", default="", help="figure title")
+    q.set_defaults(func=run_plots)
+
+
+def run_plots(args) -> int:
+    """Write the plots and the table; print the table."""
+    from frbench.analysis.success_plots import load_results, markdown_table, plot_families, success_table
+    from frbench.io import atomic_write_text
+
+    table = success_table(load_results(args.results), series=args.lines)
+    paths = plot_families(table, args.out, title=args.title)
+    text = markdown_table(table)
+    atomic_write_text(args.out / "success.md", text)
+    print(text)
+    print(f"wrote {len(paths)} figures and {args.out / 'success.md'}")
+    return 0
 
 
 def run(args) -> int:

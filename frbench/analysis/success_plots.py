@@ -1,0 +1,120 @@
+"""Success against difficulty level, one figure per terrain family, from ``frbench evaluate`` results files.
+
+Each figure has one panel per backend; each line is one *series* — a robot
+(for one policy's results) or a policy (for a comparison of methods, the
+success averaged over the robots) — with the mean over evaluation seeds and a
+band of ± one standard deviation across seeds. The same numbers go into a
+Markdown table (`markdown_table`) for docs/results.md.
+"""
+
+from __future__ import annotations
+
+import json
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+from frbench.errors import FrbenchError
+
+SERIES_KEYS = ("robot", "policy")
+
+
+def load_results(paths: list[Path]) -> list[dict]:
+    """The results JSON of each path (a clear error names a missing or malformed file)."""
+    loaded = []
+    for path in paths:
+        try:
+            data = json.loads(Path(path).read_text())
+        except OSError as exc:
+            raise FrbenchError(f"{path}: cannot read results file ({exc.strerror})") from None
+        except json.JSONDecodeError as exc:
+            raise FrbenchError(f"{path}: not JSON ({exc.msg} at line {exc.lineno})") from None
+        if "cells" not in data or "policy" not in data:
+            raise FrbenchError(f"{path}: not an frbench evaluate results file (no 'cells' or 'policy')")
+        loaded.append(data)
+    return loaded
+
+
+def success_table(results: list[dict], series: str = "robot") -> dict:
+    """{(series value, backend, terrain, level): (mean, std, n_seeds)} of the success rate.
+
+    ``series="robot"``: per robot (the seeds' rates); ``series="policy"``: per policy, each seed's rate
+    averaged over the robots first, so the std is across seeds as for one robot.
+    """
+    if series not in SERIES_KEYS:
+        raise FrbenchError(f"series {series!r}: expected one of {', '.join(SERIES_KEYS)}")
+    per_seed: dict[tuple, list[float]] = defaultdict(list)
+    for data in results:
+        name = data["policy"]["name"]
+        for cell in data["cells"]:
+            key = (cell["robot"] if series == "robot" else name, cell["backend"], cell["terrain"], cell["level"],
+                   cell["seed"])
+            per_seed[key].append(cell["success_rate"])
+    by_cell: dict[tuple, list[float]] = defaultdict(list)
+    for (label, backend, terrain, level, _seed), rates in per_seed.items():
+        by_cell[(label, backend, terrain, level)].append(float(np.mean(rates)))
+    return {key: (float(np.mean(v)), float(np.std(v)), len(v)) for key, v in by_cell.items()}
+
+
+def plot_families(table: dict, out_dir: Path, title: str = "") -> list[Path]:
+    """One PNG per terrain family (``success_<family>.png``) in ``out_dir``; returns the paths."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    labels = sorted({k[0] for k in table})
+    backends = sorted({k[1] for k in table})
+    paths = []
+    for terrain in sorted({k[2] for k in table}):
+        fig, axes = plt.subplots(1, len(backends), figsize=(4.2 * len(backends), 3.2), dpi=110, sharey=True,
+                                 squeeze=False)
+        for ax, backend in zip(axes[0], backends):
+            for label in labels:
+                points = sorted((k[3], v) for k, v in table.items() if k[:3] == (label, backend, terrain))
+                if not points:
+                    continue
+                levels = np.array([p[0] for p in points])
+                mean = np.array([p[1][0] for p in points]) * 100
+                std = np.array([p[1][1] for p in points]) * 100
+                ax.plot(levels, mean, marker="o", label=label)
+                ax.fill_between(levels, np.clip(mean - std, 0, 100), np.clip(mean + std, 0, 100), alpha=0.15)
+            ax.set_title(f"{terrain} — {backend}")
+            ax.set_xlabel("level")
+            ax.set_ylim(-2, 102)
+            ax.grid(alpha=0.3)
+        axes[0][0].set_ylabel("success [%] (mean ± std over seeds)")
+        axes[0][-1].legend(fontsize=7, loc="best")
+        if title:
+            fig.suptitle(title, fontsize=9)
+        fig.tight_layout()
+        path = out_dir / f"success_{terrain}.png"
+        tmp = path.with_name(f".{path.name}.tmp.png")
+        fig.savefig(tmp)
+        plt.close(fig)
+        tmp.replace(path)
+        paths.append(path)
+    return paths
+
+
+def markdown_table(table: dict) -> str:
+    """Rows series × terrain, columns level × backend: "mean ± std" in percent."""
+    labels = sorted({k[0] for k in table})
+    backends = sorted({k[1] for k in table})
+    terrains = sorted({k[2] for k in table})
+    levels = sorted({k[3] for k in table})
+    header = "| | terrain | " + " | ".join(f"L{lv} {b}" for lv in levels for b in backends) + " |"
+    lines = [header, "|" + "---|" * (2 + len(levels) * len(backends))]
+    for label in labels:
+        for terrain in terrains:
+            cells = []
+            for level in levels:
+                for backend in backends:
+                    value = table.get((label, backend, terrain, level))
+                    cells.append("" if value is None else f"{100 * value[0]:.1f} ± {100 * value[1]:.1f}")
+            if any(cells):
+                lines.append(f"| {label} | {terrain} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
