@@ -61,10 +61,13 @@ def test_the_training_reward_keeps_the_papers_weights_visible():
     assert config.weights["upright_orientation"] == 6.0
 
 
-def test_a_run_checkpoints_resumes_and_its_policy_acts_identically(tmp_path):
+def test_a_run_checkpoints_resumes_and_its_policy_acts_identically(tmp_path, monkeypatch):
     from frbench.policies.registry import load_policy
     from frbench.robots import get_robot
+    from frbench.training import run as run_module
     from frbench.training.run import TrainingRun
+
+    monkeypatch.setattr(run_module, "SNAPSHOT_EVERY_STEPS", 200)
 
     cfg = TrainEnvConfig(num_envs=8, episode_steps=5, settle_steps=2, num_morphologies=2, families=("flat", "rough"))
     run = TrainingRun(tmp_path / "run", "frnet", cfg, total_steps=8 * 24 * 2, checkpoint_every=1)
@@ -79,6 +82,8 @@ def test_a_run_checkpoints_resumes_and_its_policy_acts_identically(tmp_path):
     resumed.train(progress_bar=False)
     assert resumed.iteration == 3 and resumed.env_steps == 576
     assert [row["iteration"] for row in json.loads((tmp_path / "run" / "progress.json").read_text())] == [1, 2, 3]
+    # a snapshot each time the run crosses another 200 env steps: at 384 and 576 (192 crossed none)
+    assert sorted(p.name for p in (tmp_path / "run" / "snapshots").iterdir()) == ["policy_384.pt", "policy_576.pt"]
     assert (tmp_path / "run" / "curve.png").stat().st_size > 1000
     spec = get_robot("go2")
     obs = {"base_angvel": np.full((2, 3), 0.1), "projected_gravity": np.tile([0.0, 0.0, 1.0], (2, 1)),

@@ -9,6 +9,9 @@ A run folder ``runs/NAME/`` holds:
 * ``policy.pt``: the frbench policy checkpoint (`frbench-policy-v1`, loads with
   ``torch.load(weights_only=True)``): actor weights incl. normalisers and the
   estimator, the resolved configs, the robot/action conventions;
+* ``snapshots/policy_<env steps>.pt``: a copy of ``policy.pt`` every
+  ``SNAPSHOT_EVERY_STEPS`` env steps (≈ 0.9 MB each), so that success can be
+  measured with ``frbench evaluate`` along the run (steps to a target);
 * ``progress.json``: one row per checkpoint (env steps, wall-clock, success
   rates), from which ``curve.png`` is drawn;
 * TensorBoard event files.
@@ -33,6 +36,9 @@ from frbench.io import atomic_write_text
 from frbench.policies.checkpoint import CHECKPOINT_FORMAT
 
 RUNNER_FILE, STATE_FILE, POLICY_FILE, CONFIG_FILE, PROGRESS_FILE = "runner.pt", "state.pt", "policy.pt", "config.json", "progress.json"
+SNAPSHOT_DIR = "snapshots"
+#: Env steps between policy snapshots.
+SNAPSHOT_EVERY_STEPS = 1_000_000
 
 
 def _atomic_torch_save(obj, path: Path) -> None:
@@ -134,8 +140,22 @@ class TrainingRun:
                                              self.env.num_actions, self.env.spec.kind),
                            self.out / POLICY_FILE)
         atomic_write_text(self.out / PROGRESS_FILE, json.dumps(self.progress, indent=1) + "\n")
+        self._snapshot()
         for old in self.out.glob("model_*.pt"):  # rsl-rl's own per-call saves; runner.pt supersedes them
             old.unlink(missing_ok=True)
+
+    def _snapshot(self) -> None:
+        """Copy policy.pt to snapshots/ when the run has crossed another ``SNAPSHOT_EVERY_STEPS`` env steps."""
+        import shutil
+
+        folder = self.out / SNAPSHOT_DIR
+        taken = sorted(int(p.stem.split("_")[1]) for p in folder.glob("policy_*.pt")) if folder.is_dir() else []
+        last = taken[-1] if taken else 0
+        if self.env_steps // SNAPSHOT_EVERY_STEPS > last // SNAPSHOT_EVERY_STEPS:
+            folder.mkdir(exist_ok=True)
+            tmp = folder / f".policy_{self.env_steps}.pt.tmp"
+            shutil.copyfile(self.out / POLICY_FILE, tmp)
+            os.replace(tmp, folder / f"policy_{self.env_steps}.pt")
 
     # ------------------------------------------------------------------ training
     def train(self, progress_bar: bool = True) -> None:
