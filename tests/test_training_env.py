@@ -153,3 +153,37 @@ def test_a_humanoid_residual_policy_trains_and_adds_its_action_to_the_base_contr
     # q* = base(o) + 0.25 · a
     np.testing.assert_allclose(targets, base.act(state) + 0.25 * policy.action, atol=1e-12)
     assert targets.shape == (2, 29) and np.abs(policy.action).max() > 0
+
+
+def test_rma_phase_two_runs_on_the_recovery_env_and_deploys_without_extrinsics(tmp_path):
+    from frbench.errors import FrbenchError
+    from frbench.policies.registry import load_policy
+    from frbench.robots import get_robot
+    from frbench.training.run import TrainingRun
+
+    cfg = TrainEnvConfig(num_envs=4, robot="go2", families=("flat",), episode_steps=5, settle_steps=2)
+    phase1 = TrainingRun(tmp_path / "rma", "rma", cfg, total_steps=4 * 24, checkpoint_every=1)
+    phase1.train(progress_bar=False)
+    with pytest.raises(FrbenchError, match="expected a training run folder"):
+        TrainingRun(tmp_path / "x", "rma-adaptation", total_steps=96, teacher=tmp_path / "nothing")
+    phase2 = TrainingRun(tmp_path / "adapt", "rma-adaptation", total_steps=4 * 24 * 2, checkpoint_every=1,
+                         teacher=tmp_path / "rma")
+    assert phase2.env.cfg_obj.long_history == 50
+    assert phase2.env.get_observations()["long_history"].shape == (4, 50 * 42)
+    frozen = {k: v.clone() for k, v in phase2.runner.alg.actor.state_dict().items() if k.startswith("mlp.")}
+    phase2.train(progress_bar=False)
+    after = phase2.runner.alg.actor.state_dict()
+    assert all(torch.equal(v, after[k]) for k, v in frozen.items())  # π frozen, only φ learns
+    resumed = TrainingRun(tmp_path / "adapt", total_steps=4 * 24 * 3, resume=True, checkpoint_every=1)
+    assert resumed.env_steps == 192 and resumed.runner.alg.actor.use_adaptation
+    # the deployed policy reads o_t and its 50-frame history only (zeros stand in for the extrinsics)
+    policy = load_policy(str(tmp_path / "adapt"))
+    spec = get_robot("go2")
+    policy.reset(spec, 2)
+    obs = {"base_angvel": np.zeros((2, 3)), "projected_gravity": np.tile([0.0, 0.0, 1.0], (2, 1)),
+           "joint_pos": np.tile(spec.default_pose, (2, 1)), "joint_vel": np.zeros((2, 12)),
+           "previous_action": np.tile(spec.default_pose, (2, 1))}
+    targets = [policy.act(obs) for _ in range(3)]
+    assert policy.long_history.shape == (2, 50, 42) and np.isfinite(targets).all()
+    with pytest.raises(Exception, match="extrinsics"):
+        load_policy(str(tmp_path / "rma"))  # phase 1 needs privileged extrinsics: refused

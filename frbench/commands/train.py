@@ -11,7 +11,10 @@ from pathlib import Path
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``train`` to the CLI."""
     p = sub.add_parser("train", help="train a recovery policy (resumable)")
-    p.add_argument("--method", default="frnet", help="frnet, frnet-no-mass, frnet-no-contact, frnet-no-est, dreamriser, rma, ppo")
+    p.add_argument("--method", default="frnet",
+                   help="frnet, frnet-no-mass, frnet-no-contact, frnet-no-est, dreamriser, rma, ppo; "
+                        "rma-adaptation (RMA's phase 2, with --teacher)")
+    p.add_argument("--teacher", type=Path, default=None, help="rma-adaptation: the finished 'rma' run folder")
     p.add_argument("--robots", default=None, help="train on one named robot instead of randomised morphologies")
     p.add_argument("--steps", type=float, default=None, help="env-step budget (default 20e6; with --resume: extend the budget)")
     p.add_argument("--envs", type=int, default=256, help="parallel environments")
@@ -50,7 +53,9 @@ def run(args) -> int:
         run_ = TrainingRun(args.resume, total_steps=int(args.steps) if args.steps else None, resume=True,
                            checkpoint_every=args.checkpoint_every)
     else:
-        if args.method not in METHODS:
+        from frbench.training.run import ADAPTATION_METHOD
+
+        if args.method not in METHODS and args.method != ADAPTATION_METHOD:
             from frbench.errors import unknown_name
 
             raise unknown_name("training method", args.method, METHODS)
@@ -85,7 +90,8 @@ def run(args) -> int:
         )
         out = args.out or Path("runs") / args.method
         command = "frbench " + " ".join(shlex.quote(a) for a in sys.argv[1:])
-        run_ = TrainingRun(out, args.method, env_cfg, int(args.steps), args.checkpoint_every, command)
+        run_ = TrainingRun(out, args.method, env_cfg, int(args.steps), args.checkpoint_every, command,
+                           teacher=args.teacher)
     run_.train()
     print(f"trained {run_.env_steps / 1e6:.2f}M env steps in {run_.wall / 60:.1f} min; policy at {run_.out / 'policy.pt'}")
     return 0

@@ -19,7 +19,8 @@ CHECKPOINT_FORMAT = "frbench-policy-v1"
 #: Training method → "module:function" building a policy from a checkpoint dict.
 CHECKPOINT_LOADERS: dict[str, str] = {
     method: "frbench.policies.learned:load_learned_policy"
-    for method in ("frnet", "frnet-no-mass", "frnet-no-contact", "frnet-no-est", "dreamriser", "rma", "ppo")
+    for method in ("frnet", "frnet-no-mass", "frnet-no-contact", "frnet-no-est", "dreamriser", "rma", "rma-adaptation",
+                   "ppo")
 }
 
 

@@ -17,14 +17,18 @@ from frbench.errors import PolicyError
 from frbench.robots.spec import RobotSpec
 from frbench.tasks.observations import flatten
 
-#: The observation groups a deployed policy gets: o_t (6 + 3J) and its history (H frames).
-DEPLOYABLE_GROUPS = {"policy", "history"}
+#: The observation groups a deployed policy gets: o_t (6 + 3J), its history (H frames) and its long
+#: history (T frames, RMA's adaptation module).
+DEPLOYABLE_GROUPS = {"policy", "history", "long_history"}
 
 
-def deployable_group_widths(num_actions: int, frames: int) -> dict[str, int]:
+def deployable_group_widths(num_actions: int, frames: int, long_frames: int = 0) -> dict[str, int]:
     """Widths of the deployable groups for a robot with ``num_actions`` joints (see frbench.training.env)."""
     frame = 6 + 3 * num_actions
-    return {"policy": frame, "history": frames * frame}
+    widths = {"policy": frame, "history": frames * frame}
+    if long_frames:
+        widths["long_history"] = long_frames * frame
+    return widths
 
 
 def policy_name(method: str, checkpoint: Path) -> str:
@@ -50,7 +54,10 @@ class LearnedPolicy:
         config = json.loads(data["config_json"])
         train_cfg = config["train_cfg"]
         self.groups = list(train_cfg["obs_groups"]["actor"])
-        missing = set(self.groups) - DEPLOYABLE_GROUPS
+        actor_cfg = dict(train_cfg["actor"])
+        # RMA after its phase 2 acts on ẑ = φ(long history) and never reads its extrinsics group: zeros go there
+        self.ignored = {"extrinsics"} if actor_cfg.get("use_adaptation") else set()
+        missing = set(self.groups) - DEPLOYABLE_GROUPS - self.ignored
         if missing:
             raise PolicyError(
                 f"{path}: a {self.method!r} policy needs {', '.join(sorted(missing))} at deployment, which a benchmark "
@@ -61,9 +68,12 @@ class LearnedPolicy:
         self.num_actions = int(data.get("num_actions", 12))
         self.robot_kind = str(data.get("robot_kind", "quadruped"))
         self.base_controller_name = config["env"].get("base_controller")
-        actor_cfg = dict(train_cfg["actor"])
+        self.long_frames = int(config["env"].get("long_history", 0)) if "long_history" in self.groups else 0
         actor_class = resolve_callable(actor_cfg.pop("class_name"))
-        widths = deployable_group_widths(self.num_actions, self.frames)
+        widths = deployable_group_widths(self.num_actions, self.frames, self.long_frames)
+        extrinsics = data["actor_state_dict"].get("extrinsics_normalizer._mean")
+        self.ignored_widths = {g: int(extrinsics.shape[-1]) if extrinsics is not None else 11 for g in self.ignored}
+        widths.update(self.ignored_widths)
         dummy = TensorDict({g: torch.zeros(1, w) for g, w in widths.items()}, batch_size=[1])
         self.actor = actor_class(dummy, {"actor": self.groups}, "actor", self.num_actions, **actor_cfg)
         try:
@@ -89,6 +99,7 @@ class LearnedPolicy:
         self.default_pose = np.asarray(spec.default_pose)
         self.action = np.zeros((num_envs, spec.n_joints))
         self.history = None
+        self.long_history = None
         if self.base_controller is not None:
             self.base_controller.reset(spec, num_envs)
 
@@ -97,16 +108,17 @@ class LearnedPolicy:
         for a residual policy) + action_scale · a."""
         o_t = flatten(obs, self.default_pose)
         o_t[:, -self.action.shape[1]:] = self.action
-        if self.history is None:
+        if self.history is None:  # a new episode: the histories start filled with its first frame
             self.history = np.repeat(o_t[:, None, :], self.frames, axis=1)
+            self.long_history = np.repeat(o_t[:, None, :], self.long_frames, axis=1)
         else:
             self.history = np.concatenate([self.history[:, 1:], o_t[:, None, :]], axis=1)
-        torch = self._torch
-        td = self._TensorDict(
-            {"policy": torch.as_tensor(o_t, dtype=torch.float32),
-             "history": torch.as_tensor(self.history.reshape(len(o_t), -1), dtype=torch.float32)},
-            batch_size=[len(o_t)],
-        )
+            self.long_history = np.concatenate([self.long_history[:, 1:], o_t[:, None, :]], axis=1)
+        torch, n = self._torch, len(o_t)
+        groups = {"policy": o_t, "history": self.history.reshape(n, -1), "long_history": self.long_history.reshape(n, -1)}
+        groups.update({g: np.zeros((n, w)) for g, w in self.ignored_widths.items()})
+        td = self._TensorDict({g: torch.as_tensor(groups[g], dtype=torch.float32) for g in self.groups},
+                              batch_size=[n])
         with torch.inference_mode():
             action = self.actor(td).numpy().astype(np.float64)
         self.action = np.clip(action, -10.0, 10.0)

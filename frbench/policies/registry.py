@@ -23,6 +23,7 @@ ENTRY_POINT_GROUP = "frbench.policies"
 BUILTIN_POLICIES = {
     "zero": "frbench.policies.zero:ZeroPolicy",
     "scripted": "frbench.policies.scripted:ScriptedPolicy",
+    "scripted-humanoid": "frbench.policies.scripted_humanoid:HumanoidScriptedPolicy",
 }
 
 

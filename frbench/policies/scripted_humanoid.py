@@ -1,6 +1,54 @@
 """``scripted-humanoid``: a model-based key-frame getting-up controller for the Unitree G1 (no training).
 
-draft
+A per-environment state machine driven by proprioception only: the projected
+gravity g (body frame; (0, 0, -1) upright, (+1, 0, 0) face down, (-1, 0, 0)
+face up, g_y > 0 lying on the left side), the measured joint angles (only to
+start from where the joints are) and the control steps spent in the current
+phase. Every key pose is built from named joints of the spec (``knee``,
+``waist_yaw`` ...; roll and yaw angles mirrored for the right side) and clipped
+`LIMIT_MARGIN` inside the joint limits. Targets move from the previous
+targets to each phase's pose by smoothstep interpolation over the phase's
+ramp. Sign conventions, checked on the G1's kinematic tree: negative hip
+pitch swings the thigh forward, positive knee flexes, negative ankle pitch
+lifts the toes, negative shoulder pitch raises the arm forward, elbow 0 is a
+right angle (about +1.5 is a straight arm), positive waist pitch bends the
+torso forward, positive hip/shoulder roll moves the left limb outwards.
+Phases:
+
+``LIE``     legs straight, arms along the body; then choose from g: face
+            down -> ``PUSH_A``; face up or on a side -> ``ROLL``, towards
+            the side that is already lower; upright -> ``CROUCH``.
+``ROLL``    face up / side -> face down, in two stages. Back -> side: the chest
+            twists towards the lower side (waist yaw), the upper arm reaches
+            across the chest, the upper leg flexes and crosses over, the lower
+            arm goes overhead out of the way. Once on the side (d g_y >
+            `SIDE_GY`), side -> belly: the upper leg and arm reach forward so
+            their weight tips the body over its front, the lower leg extends
+            back. Face down (g_x > `ROLLED_GX`) -> ``PUSH_A``; timeout ->
+            ``LIE`` and roll the other way.
+``PUSH_A``  hands beside the chest (upper arms back, elbows bent).
+``PUSH_B``  push-up: the arms straighten under the shoulders, lifting the chest.
+``LIFT``    from the push-up the hips start to flex with straight knees, legs
+            apart, the arms reaching overhead in line with the torso.
+``PIKE``    downward dog: hips fully flexed, knees straight, on the toes, hands
+            and feet on the ground, pelvis high (about 0.6 m in MuJoCo).
+``SQUAT``   the knees bend and the ankles dorsiflex (feet flat) with the hips
+            still flexed, so the pelvis should come down and back over the feet
+            into a deep squat, hands still down.
+``CROUCH``  the torso rises (hips extend) with the knees still bent, keeping
+            the centre of mass over the feet; arms forward as counterweight.
+``RISE``    interpolate to the default standing pose.
+``HOLD``    hold the default pose.
+
+Falling over again (face up while pushing, piking or squatting, or tilted
+more than `FALLEN_GZ` while rising or holding) restarts from ``LIE``.
+
+Status (flat ground): it does not stand up yet (0 % success in ``frbench
+evaluate``). The push-up works from prone; the pike is reached from 2 of 5
+prone starts tried in MuJoCo (pelvis 0.5-0.6 m), fewer in PyBullet. In
+``SQUAT`` the weight does not move onto the feet: the knees drop to the
+ground (or the robot tips sideways) instead of the pelvis moving back over the
+heels. Rolls reach the side but mostly stall there before the belly.
 """
 
 from __future__ import annotations
@@ -9,13 +57,26 @@ import numpy as np
 
 from frbench.robots.spec import RobotSpec
 
-LIE, ROLL, PUSH_A, PUSH_B, TUCK, SIT, SQUAT, RISE, HOLD = range(9)
-PHASE_NAMES = ("lie", "roll", "push_a", "push_b", "tuck", "sit", "squat", "rise", "hold")
+LIE, ROLL, PUSH_A, PUSH_B, LIFT, PIKE, SQUAT, CROUCH, RISE, HOLD = range(10)
+PHASE_NAMES = ("lie", "roll", "push_a", "push_b", "lift", "pike", "squat", "crouch", "rise", "hold")
 
-#: Interpolation time [control steps] from the previous targets to each phase's pose.
-RAMP_STEPS = np.array([10, 30, 10, 20, 25, 30, 25, 50, 1])
-#: Steps each phase holds its pose after the ramp before moving on.
-HOLD_STEPS = np.array([0, 0, 0, 5, 10, 10, 5, 0, 0])
+#: Interpolation time [control steps of 0.02 s] from the previous targets to each phase's pose.
+RAMP_STEPS = np.array([10, 30, 10, 20, 35, 40, 45, 30, 40, 1])
+#: Steps [control steps] each phase holds its reached pose before the next phase starts.
+HOLD_STEPS = np.array([0, 0, 0, 5, 0, 0, 5, 5, 0, 0])
+#: Steps [control steps] a roll may last before it is retried the other way.
+ROLL_TIMEOUT = 60
+
+#: Projected-gravity thresholds (unitless components of the unit gravity vector in the body frame).
+PRONE_GX = 0.6  # g_x above this: face down
+ROLLED_GX = 0.45  # g_x above this while rolling: (nearly) face down, start pushing up
+SIDE_GY = 0.8  # d * g_y above this while rolling in direction d: on the side, roll on onto the belly
+SUPINE_GX = -0.6  # g_x below this: face up
+UPRIGHT_GZ = -0.7  # g_z below this at the start: (nearly) on the feet already
+FALLEN_GZ = -0.5  # g_z above this while rising or holding: fallen over again
+
+#: Margin [rad] kept from the joint limits.
+LIMIT_MARGIN = 0.05
 
 LEG_JOINTS = ("hip_pitch", "hip_roll", "hip_yaw", "knee", "ankle_pitch", "ankle_roll")
 ARM_JOINTS = ("shoulder_pitch", "shoulder_roll", "shoulder_yaw", "elbow", "wrist_roll", "wrist_pitch", "wrist_yaw")
@@ -23,21 +84,49 @@ WAIST_JOINTS = ("waist_yaw", "waist_roll", "waist_pitch")
 #: Joints whose sign is mirrored between the left and the right side (roll and yaw axes).
 MIRRORED = ("hip_roll", "hip_yaw", "ankle_roll", "shoulder_roll", "shoulder_yaw", "wrist_roll", "wrist_yaw")
 SIDES = ("left", "right")
-G1_JOINTS = tuple(f"{s}_{j}_joint" for s in SIDES for j in LEG_JOINTS) + tuple(f"{j}_joint" for j in WAIST_JOINTS) + tuple(
-    f"{s}_{j}_joint" for s in SIDES for j in ARM_JOINTS
+G1_JOINTS = (
+    tuple(f"{s}_{j}_joint" for s in SIDES for j in LEG_JOINTS)
+    + tuple(f"{j}_joint" for j in WAIST_JOINTS)
+    + tuple(f"{s}_{j}_joint" for s in SIDES for j in ARM_JOINTS)
 )
 
-LIMIT_MARGIN = 0.05
-
-#: Key poses: joint (without side) -> angle [rad] for the left side; the right mirrors roll/yaw.
-LIE_POSE = {"hip_pitch": 0.0, "knee": 0.2, "ankle_pitch": 0.0, "shoulder_pitch": 0.0, "shoulder_roll": 0.2, "elbow": 1.5}
-PUSH_A_POSE = {"hip_pitch": 0.0, "knee": 0.2, "ankle_pitch": 0.0, "shoulder_pitch": 0.3, "shoulder_roll": 0.2, "elbow": 0.0}
-PUSH_B_POSE = {"hip_pitch": 0.0, "knee": 0.2, "ankle_pitch": 0.0, "shoulder_pitch": -1.4, "shoulder_roll": 0.2, "elbow": 1.5}
-TUCK_POSE = {"hip_pitch": -1.8, "hip_roll": 0.15, "knee": 2.4, "ankle_pitch": 0.0, "shoulder_pitch": -1.6, "shoulder_roll": 0.2, "elbow": 1.5}
-SIT_POSE = {"hip_pitch": -1.0, "hip_roll": 0.15, "knee": 0.8, "ankle_pitch": 0.4, "shoulder_pitch": -1.2, "shoulder_roll": 0.2, "elbow": 1.5}
-SQUAT_POSE = {"hip_pitch": -2.4, "hip_roll": 0.15, "knee": 0.3, "ankle_pitch": -0.3, "waist_pitch": 0.3, "shoulder_pitch": -2.0, "shoulder_roll": 0.2, "elbow": 1.5}
-ROLL_POSE_DOWN = {"shoulder_pitch": -2.6, "shoulder_roll": 0.3, "elbow": 1.5}  # the arm of the side going down: overhead
-ROLL_POSE_UP = {"hip_pitch": -1.2, "hip_roll": -0.4, "knee": 1.0, "shoulder_pitch": -1.5, "shoulder_roll": -1.0, "elbow": 0.5}
+#: Key poses [rad]: joint name without side -> angle of the left joint (the right one mirrors roll and
+#: yaw); joints not named keep their default angle.
+LIE_POSE = {
+    "hip_pitch": 0.0, "knee": 0.2, "ankle_pitch": 0.0, "shoulder_pitch": 0.0, "shoulder_roll": 0.2,
+    "elbow": 1.5,
+}
+PUSH_A_POSE = {**LIE_POSE, "shoulder_pitch": 0.3, "elbow": 0.0}
+PUSH_B_POSE = {**LIE_POSE, "shoulder_pitch": -1.4, "elbow": 1.5}
+LIFT_POSE = {
+    "hip_pitch": -1.17, "hip_roll": 0.46, "knee": 0.1, "ankle_pitch": -0.08, "waist_pitch": 0.21,
+    "shoulder_pitch": -2.66, "shoulder_roll": 0.2, "elbow": 1.57,
+}
+PIKE_POSE = {
+    "hip_pitch": -2.48, "hip_roll": 0.2, "knee": 0.0, "ankle_pitch": 0.47, "waist_pitch": 0.47,
+    "shoulder_pitch": -2.39, "shoulder_roll": 0.2, "elbow": 1.56,
+}
+SQUAT_POSE = {
+    "hip_pitch": -2.45, "hip_roll": 0.25, "knee": 2.0, "ankle_pitch": -0.8, "waist_pitch": 0.3,
+    "shoulder_pitch": -2.39, "shoulder_roll": 0.2, "elbow": 1.5,
+}
+CROUCH_POSE = {
+    "hip_pitch": -1.8, "hip_roll": 0.1, "knee": 2.0, "ankle_pitch": -0.8, "waist_pitch": 0.3,
+    "shoulder_pitch": -1.0, "shoulder_roll": 0.2, "elbow": 1.5,
+}
+#: Roll towards one side: the arm of the side going down goes overhead, out of the way ...
+ROLL_DOWN_SIDE = {"shoulder_pitch": -2.6, "shoulder_roll": 0.3, "elbow": 1.5}
+#: ... the leg of the side going up flexes and crosses over (hip adducted), its arm reaches across the chest ...
+ROLL_UP_SIDE = {
+    "hip_pitch": -1.2, "hip_roll": -0.4, "knee": 1.0, "shoulder_pitch": -1.5, "shoulder_roll": -1.0,
+    "elbow": 0.5,
+}
+#: ... and the chest twists towards the lower side by this waist yaw [rad].
+ROLL_WAIST_YAW = 1.2
+#: From the side onto the belly: the upper leg and arm reach forward (their weight tips the body over
+#: its front), the lower leg extends back.
+ROLL_B_UP_SIDE = {"hip_pitch": -1.6, "knee": 1.2, "shoulder_pitch": -1.6, "shoulder_roll": 0.0, "elbow": 1.5}
+ROLL_B_DOWN_SIDE = {"hip_pitch": 0.3, "shoulder_pitch": -2.6, "shoulder_roll": 0.3, "elbow": 1.5}
 
 
 def _smoothstep(x: np.ndarray) -> np.ndarray:
@@ -45,8 +134,13 @@ def _smoothstep(x: np.ndarray) -> np.ndarray:
     return x * x * (3.0 - 2.0 * x)
 
 
+def _mirror(values: dict) -> dict:
+    """Left-side angles as the right side's (roll and yaw change sign)."""
+    return {k: (-v if k in MIRRORED else v) for k, v in values.items()}
+
+
 class HumanoidScriptedPolicy:
-    """Lie flat, roll onto the belly, push up, tuck, squat, rise (see the module docstring)."""
+    """Lie flat, roll onto the belly, push up, pike, squat, rise (see the module docstring)."""
 
     name = "scripted-humanoid"
     checkpoint = None
@@ -56,17 +150,15 @@ class HumanoidScriptedPolicy:
         return spec.kind == "humanoid" and set(spec.joint_names) == set(G1_JOINTS)
 
     # ------------------------------------------------------------------ poses
-    def _pose(self, left: dict, right: dict | None = None, base: np.ndarray | None = None) -> np.ndarray:
-        """A pose from named joint angles (``right`` defaults to the mirror image of ``left``)."""
-        q = (self.default if base is None else base).copy()
+    def _pose(self, left: dict, right: dict | None = None) -> np.ndarray:
+        """A pose from named angles: ``left`` for the left side and the waist, ``right`` for the right
+        side (default: the mirror image of ``left``); other joints keep their default angle."""
+        q = self.default.copy()
+        right = _mirror(left) if right is None else right
         for side, values in (("left", left), ("right", right)):
-            mirror = side == "right" and right is None
-            values = left if values is None else values
             for joint, value in values.items():
-                if joint in WAIST_JOINTS:
-                    q[self.index[f"{joint}_joint"]] = value
-                    continue
-                q[self.index[f"{side}_{joint}_joint"]] = -value if (mirror and joint in MIRRORED) else value
+                name = f"{joint}_joint" if joint in WAIST_JOINTS else f"{side}_{joint}_joint"
+                q[self.index[name]] = value
         return self._clip(q)
 
     def _clip(self, q: np.ndarray) -> np.ndarray:
@@ -77,84 +169,105 @@ class HumanoidScriptedPolicy:
         self.default = np.asarray(spec.default_pose, dtype=float)
         self.lo = np.asarray(spec.joint_lower, dtype=float) + LIMIT_MARGIN
         self.hi = np.asarray(spec.joint_upper, dtype=float) - LIMIT_MARGIN
-        self.lie = self._pose(LIE_POSE)
-        self.push_a = self._pose(PUSH_A_POSE)
-        self.push_b = self._pose(PUSH_B_POSE)
-        self.tuck = self._pose(TUCK_POSE)
-        self.sit = self._pose(SIT_POSE)
-        self.squat = self._pose(SQUAT_POSE)
-        self.stand = self._clip(self.default.copy())
+        self.poses = {
+            LIE: self._pose(LIE_POSE),
+            PUSH_A: self._pose(PUSH_A_POSE),
+            PUSH_B: self._pose(PUSH_B_POSE),
+            LIFT: self._pose(LIFT_POSE),
+            PIKE: self._pose(PIKE_POSE),
+            SQUAT: self._pose(SQUAT_POSE),
+            CROUCH: self._pose(CROUCH_POSE),
+            RISE: self._clip(self.default.copy()),
+            HOLD: self._clip(self.default.copy()),
+        }
 
-    def roll_pose(self, direction: int) -> np.ndarray:
-        """Roll towards ``direction`` (+1: the left side goes down)."""
-        down, up = (ROLL_POSE_DOWN, ROLL_POSE_UP)
+    def key_poses(self) -> dict[str, np.ndarray]:
+        """Every fixed key pose by phase name (after ``reset``)."""
+        return {PHASE_NAMES[phase]: q.copy() for phase, q in self.poses.items()}
+
+    def roll_pose(self, direction: int, stage: int = 0) -> np.ndarray:
+        """Pose rolling towards ``direction`` (+1: the left side goes down, g_y grows); stage 0 rolls from the
+        back onto the side, stage 1 from the side onto the belly."""
+        down = {**LIE_POSE, **(ROLL_DOWN_SIDE, ROLL_B_DOWN_SIDE)[stage], "waist_yaw": direction * ROLL_WAIST_YAW}
+        up = {**LIE_POSE, **(ROLL_UP_SIDE, ROLL_B_UP_SIDE)[stage], "waist_yaw": direction * ROLL_WAIST_YAW}
         if direction > 0:
-            return self._pose({**LIE_POSE, **down}, self._mirror({**LIE_POSE, **up}))
-        return self._pose({**LIE_POSE, **up}, self._mirror({**LIE_POSE, **down}))
-
-    @staticmethod
-    def _mirror(values: dict) -> dict:
-        return {k: (-v if k in MIRRORED else v) for k, v in values.items()}
+            return self._pose(down, _mirror(up))
+        return self._pose(up, _mirror(down))
 
     # ------------------------------------------------------------- interface
     def reset(self, spec: RobotSpec, num_envs: int) -> None:
+        """Start ``num_envs`` episodes; each begins in ``LIE`` from its measured joint angles."""
         self.num_envs = num_envs
         self._build_poses(spec)
         n = num_envs
         self.phase = np.full(n, LIE, dtype=int)
-        self.steps = np.zeros(n, dtype=int)
-        self.direction = np.ones(n, dtype=int)
-        self.goal = np.tile(self.lie, (n, 1))
-        self.ramp = np.tile(RAMP_STEPS, (n, 1))  # per environment, so that a search can vary them
-        self.start = None
+        self.steps = np.zeros(n, dtype=int)  # steps since the phase began
+        self.direction = np.zeros(n, dtype=int)  # roll direction, 0 until chosen
+        self.roll_stage = np.zeros(n, dtype=int)  # 0: back -> side, 1: side -> belly
+        self.goal = np.tile(self.poses[LIE], (n, 1))
+        self.ramp = np.tile(RAMP_STEPS, (n, 1))  # per environment and phase
+        self.start = None  # targets when the phase began, set on the first act()
         self.target = None
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        """Joint targets (N, 29) [rad]."""
         g = np.asarray(obs["projected_gravity"], dtype=float)
-        if self.target is None:
+        if self.target is None:  # first step: interpolate from where the joints are
             self.target = self._clip(np.asarray(obs["joint_pos"], dtype=float).copy())
             self.start = self.target.copy()
         for i in range(self.num_envs):
             self._transition(i, g[i])
         self.steps += 1
-        w = _smoothstep(self.steps / self.ramp[np.arange(self.num_envs), self.phase])[:, None]
+        ramp = self.ramp[np.arange(self.num_envs), self.phase]
+        w = _smoothstep(self.steps / ramp)[:, None]
         self.target = self._clip(self.start + w * (self.goal - self.start))
         return self.target.copy()
 
-    def _enter(self, i: int, phase: int, goal: np.ndarray) -> None:
+    # ------------------------------------------------------------ the machine
+    def _enter(self, i: int, phase: int, goal: np.ndarray | None = None) -> None:
         self.phase[i] = phase
         self.steps[i] = 0
         self.start[i] = self.target[i]
-        self.goal[i] = self._goal(i, phase, goal)
+        self.goal[i] = self.poses[phase] if goal is None else goal
 
-    def _goal(self, i: int, phase: int, goal: np.ndarray) -> np.ndarray:
-        return goal
+    def _roll(self, i: int, gy: float) -> None:
+        """Start a roll: towards the lower side first, the other way on a retry."""
+        if self.direction[i] == 0:
+            self.direction[i] = 1 if gy >= 0 else -1
+        else:
+            self.direction[i] = -self.direction[i]
+        self.roll_stage[i] = 0
+        self._enter(i, ROLL, self.roll_pose(self.direction[i]))
 
     def _transition(self, i: int, g: np.ndarray) -> None:
         phase, steps = self.phase[i], self.steps[i]
+        gx, gy, gz = g
         done = steps >= self.ramp[i, phase] + HOLD_STEPS[phase]
+        if phase in (RISE, HOLD) and gz > FALLEN_GZ:  # fell over again
+            self._enter(i, LIE)
+            return
+        if phase in (PUSH_A, PUSH_B, LIFT, PIKE, SQUAT, CROUCH) and gx < SUPINE_GX:  # tipped onto the back
+            self._enter(i, LIE)
+            return
+        if phase == ROLL:
+            if gx > ROLLED_GX:
+                self._enter(i, PUSH_A)
+            elif self.direction[i] * gy > SIDE_GY and not self.roll_stage[i]:
+                self.roll_stage[i] = 1
+                self._enter(i, ROLL, self.roll_pose(self.direction[i], 1))
+            elif steps > ROLL_TIMEOUT:
+                self._enter(i, LIE)
+            return
         if not done:
             return
         if phase == LIE:
-            if g[0] > 0.6:
-                self._enter(i, PUSH_A, self.push_a)
+            if gx > PRONE_GX:
+                self._enter(i, PUSH_A)
+            elif gz < UPRIGHT_GZ:
+                self._enter(i, CROUCH)
             else:
-                self.direction[i] = 1 if g[1] >= 0 else -1
-                self._enter(i, ROLL, self.roll_pose(self.direction[i]))
-        elif phase == ROLL:
-            if g[0] > 0.6:
-                self._enter(i, PUSH_A, self.push_a)
-            elif steps > 60:
-                self._enter(i, LIE, self.lie)
-        elif phase == PUSH_A:
-            self._enter(i, PUSH_B, self.push_b)
-        elif phase == PUSH_B:
-            self._enter(i, TUCK, self.tuck)
-        elif phase == TUCK:
-            self._enter(i, SIT, self.sit)
-        elif phase == SIT:
-            self._enter(i, SQUAT, self.squat)
-        elif phase == SQUAT:
-            self._enter(i, RISE, self.stand)
+                self._roll(i, gy)
         elif phase == RISE:
-            self._enter(i, HOLD, self.stand)
+            self._enter(i, HOLD)
+        elif phase != HOLD:
+            self._enter(i, phase + 1)  # PUSH_A -> PUSH_B -> LIFT -> PIKE -> SQUAT -> CROUCH -> RISE

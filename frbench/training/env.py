@@ -11,6 +11,8 @@ Observation groups (float32 TensorDict, N rows):
 
 * ``policy``  o_t (6 + 3J = 42): [ω, g, q − q̊, q̇, a_{t−1}];
 * ``history`` the last H = 5 o_t, oldest first (H·42);
+* ``long_history`` (only with ``TrainEnvConfig.long_history`` = T > 0) the last
+  T o_t, oldest first (T·42), for RMA's adaptation module;
 * ``privileged`` the critic's s_t (277): [o_t, 187-point height scan, 4 group
   masses [kg], Kp (J) and Kd (J), CoM xy in the base yaw frame [m], 13 contact
   flags, 4 foot force norms [N], friction];
@@ -149,6 +151,8 @@ class TrainEnvConfig:
     gain_ranges: dict = field(default_factory=lambda: dict(TRAINING_GAIN_RANGES))
     reward: RewardConfig = field(default_factory=training_reward_config)
     history: int = 5
+    #: Frames of the ``long_history`` group (RMA's adaptation module reads 50); 0: no such group.
+    long_history: int = 0
     seed: int = 0
     #: Starting states along a getting-up motion (`demo_starts`): the fraction of episodes that start from
     #: a recorded ``scripted`` state, falling linearly to 0 at ``demo_start_until`` env steps (0: off).
@@ -288,6 +292,7 @@ class RecoveryTrainingEnv(VecEnv):
             self.controller.reset(self.spec, self.num_envs)
         o_t = self._o_t()
         self.history = np.repeat(o_t[:, None, :], cfg.history, axis=1)
+        self.long_history = np.repeat(o_t[:, None, :], cfg.long_history, axis=1) if cfg.long_history else None
 
     def _base_targets(self) -> np.ndarray:
         """q̊ (J,), or the base controller's targets (N, J) [rad] for the current state (residual policies)."""
@@ -383,6 +388,8 @@ class RecoveryTrainingEnv(VecEnv):
             "mass": self.env_masses, "contact": c.group_contact.astype(float), "velocity": velocity,
             "extrinsics": extrinsics,
         }
+        if self.long_history is not None:
+            groups["long_history"] = self.long_history.reshape(self.num_envs, -1)
         alive = ~self.backend.diverged
         tensors = {}
         for key, value in groups.items():
@@ -431,6 +438,8 @@ class RecoveryTrainingEnv(VecEnv):
         self.episode_length_buf += 1
         o_t = self._o_t()
         self.history = np.concatenate([self.history[:, 1:], o_t[:, None, :]], axis=1)
+        if self.long_history is not None:
+            self.long_history = np.concatenate([self.long_history[:, 1:], o_t[:, None, :]], axis=1)
         log = {f"/reward/{k}": float(np.mean(v[alive])) if alive.any() else 0.0 for k, v in terms.items()}
         done = self.step_count >= self.cfg_obj.episode_steps
         if done:

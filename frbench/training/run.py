@@ -71,11 +71,36 @@ def env_cfg_from_dict(data: dict):
     return TrainEnvConfig(**data, reward=RewardConfig(**reward))
 
 
+#: RMA's phase 2 as a method name (`frbench train --method rma-adaptation --teacher runs/rma`).
+ADAPTATION_METHOD = "rma-adaptation"
+
+
+def _adaptation_setup(teacher: Path | None):
+    """(env config, train config) of an RMA phase-2 run from its phase-1 ``teacher`` run folder."""
+    from frbench.training.methods import make_rma_adaptation_cfg
+
+    if teacher is None:
+        raise FrbenchError(f"--method {ADAPTATION_METHOD} needs --teacher RUN, a finished 'rma' run folder")
+    config_path = Path(teacher) / CONFIG_FILE
+    if not config_path.is_file() or not (Path(teacher) / RUNNER_FILE).is_file():
+        raise FrbenchError(f"--teacher {teacher}: expected a training run folder with {CONFIG_FILE} and {RUNNER_FILE}")
+    teacher_config = json.loads(config_path.read_text())
+    if teacher_config["method"] != "rma":
+        raise FrbenchError(f"--teacher {teacher}: a {teacher_config['method']!r} run; RMA's phase 2 needs an 'rma' run")
+    train_cfg = make_rma_adaptation_cfg()
+    frames = int(train_cfg["actor"]["adaptation_frames"])
+    env_cfg = dataclasses.replace(env_cfg_from_dict(teacher_config["env"]), long_history=frames)
+    return env_cfg, train_cfg
+
+
 class TrainingRun:
     """Create or resume a run and train it to its step budget."""
 
     def __init__(self, out: Path, method: str | None = None, env_cfg=None, total_steps: int | None = None,
-                 checkpoint_every: int = 20, command: str = "", resume: bool = False):
+                 checkpoint_every: int = 20, command: str = "", resume: bool = False, teacher: Path | None = None):
+        """``method="rma-adaptation"`` is RMA's phase 2: ``teacher`` is a finished ``rma`` run folder whose
+        policy is frozen while the adaptation module learns; its env config is reused (with a 50-frame
+        long history), ``env_cfg`` is ignored."""
         import torch
 
         from frbench.training.env import RecoveryTrainingEnv
@@ -94,9 +119,14 @@ class TrainingRun:
         else:
             if (self.out / CONFIG_FILE).exists():
                 raise FrbenchError(f"--out {self.out}: a run is already there; use --resume {self.out} or another name")
-            train_cfg = make_train_cfg(method)
+            if method == ADAPTATION_METHOD:
+                env_cfg, train_cfg = _adaptation_setup(teacher)
+            else:
+                train_cfg = make_train_cfg(method)
             config = {"method": method, "env": _env_cfg_to_dict(env_cfg), "train_cfg": train_cfg,
                       "total_steps": total_steps, "command": command}
+            if teacher is not None:
+                config["teacher"] = str(teacher)
             self.out.mkdir(parents=True, exist_ok=True)
             atomic_write_text(self.out / CONFIG_FILE, json.dumps(config, indent=1) + "\n")
         self.config, self.method, self.total_steps = config, method, int(total_steps)
@@ -111,6 +141,8 @@ class TrainingRun:
         self.progress: list[dict] = []
         if resume and (self.out / RUNNER_FILE).is_file():
             self._load_state()
+        elif method == ADAPTATION_METHOD:
+            self.runner.load(str(Path(config["teacher"]) / RUNNER_FILE))  # π, μ and normalisers, then frozen
 
     # ------------------------------------------------------------------ persistence
     def _load_state(self) -> None:
