@@ -133,3 +133,26 @@ def test_morphology_spec_cache_is_keyed_by_params(tmp_path):
     assert RD.params_hash(a) == RD.params_hash(MorphologyParams(**{f: getattr(a, f) for f in a.__dataclass_fields__}))
     assert RD.params_hash(a) != RD.params_hash(b)
     assert sa.urdf_path.parent.name == RD.params_hash(a)
+
+
+def test_can_stand_separates_holding_from_sagging_robots():
+    from frbench.robots import get_robot
+    from frbench.training.feasibility import can_stand
+
+    go2 = get_robot("go2")
+    assert can_stand(go2, kp=40.0, kd=1.0)
+    assert not can_stand(go2, kp=3.0, kd=0.1)  # sinks onto its body
+
+
+def test_training_morphologies_all_stand_at_the_lowest_training_gains():
+    import torch
+
+    from frbench.training.env import RecoveryTrainingEnv, TrainEnvConfig
+    from frbench.training.feasibility import can_stand
+
+    torch.set_num_threads(1)
+    env = RecoveryTrainingEnv(TrainEnvConfig(num_envs=4, num_morphologies=4, episode_steps=2, settle_steps=1,
+                                             families=("flat",)))
+    assert len(env.specs) == 4 and env.rejected >= 1  # the paper's table yields many robots too heavy to stand
+    assert all(can_stand(spec, 50.0, 1.0) for spec in env.specs)
+    env.close()

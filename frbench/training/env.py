@@ -48,10 +48,11 @@ from frbench.tasks.success import StepSignals, SuccessTracker
 from frbench.terrains import FAMILIES
 from frbench.training.curriculum import TerrainCurriculum
 from frbench.training.demo_starts import assist_probability, record_demo_starts
+from frbench.training.feasibility import can_stand
 from frbench.training.height_raster import HeightRaster
 from frbench.training.randomization import (
     CONTROL_RANGES,
-    morphology_specs,
+    morphology_spec,
     sample_morphologies,
     sample_physics,
 )
@@ -208,12 +209,7 @@ class RecoveryTrainingEnv(VecEnv):
         if cfg.robot:
             specs = [get_robot(cfg.robot)]
         else:
-            morphologies = sample_morphologies(cfg.num_morphologies, self.rng)
-            if cfg.randomize:  # the paper's CoM shift, baked into each morphology's trunk inertial
-                shifts = self.rng.uniform(*CONTROL_RANGES["com_shift"], size=(len(morphologies), 3))
-                morphologies = [dataclasses.replace(m, trunk_com_shift=tuple(map(float, d)))
-                                for m, d in zip(morphologies, shifts)]
-            specs = morphology_specs(morphologies)
+            specs = self._feasible_morphologies()
         self.specs = specs
         self.spec = specs[0]
         self.assignment = np.arange(n) % len(specs)
@@ -245,6 +241,27 @@ class RecoveryTrainingEnv(VecEnv):
             self.controller = load_policy(self.cfg_obj.base_controller)
             if not self.controller.supports(self.spec):
                 raise ValueError(f"base_controller {self.cfg_obj.base_controller!r} does not support {self.spec.name!r}")
+
+    def _feasible_morphologies(self) -> list:
+        """``num_morphologies`` sampled robots (CoM shift applied when randomising) that can stand at the lowest
+        training gains (`feasibility.can_stand`); the others are redrawn and counted in ``self.rejected``."""
+        cfg = self.cfg_obj
+        kp, kd = cfg.gain_ranges.get("kp", CONTROL_RANGES["kp"])[0], cfg.gain_ranges.get("kd", CONTROL_RANGES["kd"])[0]
+        specs, self.rejected = [], 0
+        while len(specs) < cfg.num_morphologies:
+            morphology = sample_morphologies(1, self.rng)[0]
+            if cfg.randomize:  # the paper's CoM shift, baked into the morphology's trunk inertial
+                shift = self.rng.uniform(*CONTROL_RANGES["com_shift"], size=3)
+                morphology = dataclasses.replace(morphology, trunk_com_shift=tuple(map(float, shift)))
+            spec = morphology_spec(morphology, f"morph{len(specs):04d}")
+            if can_stand(spec, kp, kd):
+                specs.append(spec)
+            else:
+                self.rejected += 1
+            if self.rejected > 20 * cfg.num_morphologies:
+                raise ValueError(f"{self.rejected} sampled morphologies could not stand at Kp {kp}, Kd {kd}; "
+                                 "raise the gain range")
+        return specs
 
     def _reward_config(self, reward: RewardConfig) -> RewardConfig:
         """The velocity-limit threshold read as legged_gym does: 0.8 × each joint's URDF velocity limit.
