@@ -8,26 +8,13 @@ import pytest
 from frbench.policies.registry import load_policy
 from frbench.policies.scripted_humanoid import HOLD, LIE, PUSH_A, ROLL, HumanoidScriptedPolicy
 from frbench.robots import get_robot
+from tests.test_scripted import _obs
 
 UPRIGHT = (0.0, 0.0, -1.0)
 PRONE = (1.0, 0.0, 0.0)  # face down: gravity along the body's front (+x)
 SUPINE = (-1.0, 0.0, 0.0)
 LEFT_SIDE = (0.0, 1.0, 0.0)
 RIGHT_SIDE = (0.0, -1.0, 0.0)
-
-
-def _obs(spec, gravity, q=None):
-    g = np.atleast_2d(np.asarray(gravity, dtype=float))
-    n = len(g)
-    q = np.tile(np.asarray(spec.default_pose, dtype=float), (n, 1)) if q is None else np.asarray(q, dtype=float)
-    zeros = np.zeros((n, spec.n_joints))
-    return {
-        "base_angvel": np.zeros((n, 3)),
-        "projected_gravity": g,
-        "joint_pos": q,
-        "joint_vel": zeros,
-        "previous_action": np.tile(np.asarray(spec.default_pose, dtype=float), (n, 1)),
-    }
 
 
 def test_registered_and_supports_the_g1_only():
