@@ -304,6 +304,7 @@ class RecoveryTrainingEnv(VecEnv):
             self.state = self.backend.state()
             self.contacts = self.backend.contacts()
             self.init_xy = self.state.base_pos[:, :2].copy()
+            self.qd_prev = self.state.qd.copy()  # the first step's joint acceleration starts from the bank state
         self.action_prev = self.action.copy()  # a_{t-1} while self.action is a_t; both zero at a fresh start
         if self.controller is not None:
             self.controller.reset(self.spec, self.num_envs)
