@@ -56,8 +56,8 @@ class LearnedPolicy:
         self.groups = list(train_cfg["obs_groups"]["actor"])
         actor_cfg = dict(train_cfg["actor"])
         # RMA after its phase 2 acts on ẑ = φ(long history) and never reads its extrinsics group: zeros go there
-        self.ignored = {"extrinsics"} if actor_cfg.get("use_adaptation") else set()
-        missing = set(self.groups) - DEPLOYABLE_GROUPS - self.ignored
+        ignored = {"extrinsics"} if actor_cfg.get("use_adaptation") else set()
+        missing = set(self.groups) - DEPLOYABLE_GROUPS - ignored
         if missing:
             raise PolicyError(
                 f"{path}: a {self.method!r} policy needs {', '.join(sorted(missing))} at deployment, which a benchmark "
@@ -72,7 +72,7 @@ class LearnedPolicy:
         actor_class = resolve_callable(actor_cfg.pop("class_name"))
         widths = deployable_group_widths(self.num_actions, self.frames, self.long_frames)
         extrinsics = data["actor_state_dict"].get("extrinsics_normalizer._mean")
-        self.ignored_widths = {g: int(extrinsics.shape[-1]) if extrinsics is not None else 11 for g in self.ignored}
+        self.ignored_widths = {g: int(extrinsics.shape[-1]) if extrinsics is not None else 11 for g in ignored}
         widths.update(self.ignored_widths)
         dummy = TensorDict({g: torch.zeros(1, w) for g, w in widths.items()}, batch_size=[1])
         self.actor = actor_class(dummy, {"actor": self.groups}, "actor", self.num_actions, **actor_cfg)
