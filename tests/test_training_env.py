@@ -8,7 +8,12 @@ import numpy as np
 import pytest
 import torch
 
-from frbench.training.env import RecoveryTrainingEnv, TrainEnvConfig, training_reward_config
+from frbench.errors import FrbenchError
+from frbench.training.env import (
+    RecoveryTrainingEnv,
+    TrainEnvConfig,
+    training_reward_config,
+)
 from frbench.training.rewards import PAPER_WEIGHTS
 
 
@@ -113,8 +118,32 @@ def test_a_run_checkpoints_resumes_and_its_policy_acts_identically(tmp_path, mon
     assert json.loads(path.with_suffix(".json").read_text())["inputs"] == {"obs": [1, 42], "history": [1, 210]}
 
 
+def test_a_resumed_run_can_start_a_reward_stage_with_the_papers_motion_penalties(tmp_path):
+    from frbench.training.run import TrainingRun
+
+    cfg = TrainEnvConfig(num_envs=4, episode_steps=5, settle_steps=2, num_morphologies=2, families=("flat",))
+    TrainingRun(tmp_path / "run", "ppo", cfg, total_steps=4 * 24, checkpoint_every=1).train(progress_bar=False)
+    staged = TrainingRun(tmp_path / "run", total_steps=4 * 24 * 2, resume=True, checkpoint_every=1,
+                         command="frbench train --resume run --motion-penalties 1", motion_penalty_scale=1.0)
+    for term in ("joint_velocity", "joint_acceleration", "joint_torques"):
+        assert staged.env.reward_cfg.weights[term] == PAPER_WEIGHTS[term]
+    assert staged.env.reward_cfg.weights["safety_force"] == pytest.approx(0.1 * PAPER_WEIGHTS["safety_force"])
+    assert staged.env_steps == 96
+    staged.train(progress_bar=False)
+    config = json.loads((tmp_path / "run" / "config.json").read_text())
+    assert config["stages"] == [{"from_env_steps": 96, "motion_penalty_scale": 1.0,
+                                 "terms": ["joint_velocity", "joint_acceleration", "joint_torques"],
+                                 "command": "frbench train --resume run --motion-penalties 1"}]
+    # the policy checkpoint carries the staged config; a plain resume keeps the stage's weights
+    data = torch.load(tmp_path / "run" / "policy.pt", weights_only=True)
+    assert json.loads(data["config_json"])["stages"][0]["from_env_steps"] == 96
+    again = TrainingRun(tmp_path / "run", resume=True)
+    assert again.env.reward_cfg.weights["joint_velocity"] == PAPER_WEIGHTS["joint_velocity"]
+    with pytest.raises(FrbenchError, match="expected a scale >= 0"):
+        TrainingRun(tmp_path / "run", resume=True, motion_penalty_scale=-1.0)
+
+
 def test_train_refuses_to_overwrite_a_run(tmp_path):
-    from frbench.errors import FrbenchError
     from frbench.training.run import TrainingRun
 
     (tmp_path / "config.json").write_text("{}")

@@ -33,6 +33,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="env steps at which the demo-start fraction reaches 0 (default: half the budget)")
     p.add_argument("--base-controller", default=None, metavar="POLICY",
                    help="train a residual over this policy's joint targets (e.g. scripted-humanoid)")
+    p.add_argument("--motion-penalties", type=float, default=None, metavar="SCALE",
+                   help="joint velocity/acceleration/torque penalties at SCALE x the paper's weights (new runs: "
+                        "default 0.1; with --resume: a new reward stage from the run's current step)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--checkpoint-every", type=int, default=20, help="iterations between checkpoints")
     p.add_argument("--out", type=Path, default=None, help="run folder (default runs/<method>)")
@@ -44,14 +47,20 @@ def run(args) -> int:
     """Create (or resume) the run and train it to its budget."""
     from frbench.errors import FrbenchError
     from frbench.terrains import FAMILIES
-    from frbench.training.env import TrainEnvConfig, training_reward_config
+    from frbench.training.env import (
+        TrainEnvConfig,
+        training_reward_config,
+        with_motion_penalties,
+    )
     from frbench.training.methods import METHODS
     from frbench.training.rewards import STABILITY_TERMS
     from frbench.training.run import TrainingRun
 
+    command = "frbench " + " ".join(shlex.quote(a) for a in sys.argv[1:])
     if args.resume:
         run_ = TrainingRun(args.resume, total_steps=int(args.steps) if args.steps else None, resume=True,
-                           checkpoint_every=args.checkpoint_every)
+                           checkpoint_every=args.checkpoint_every, command=command,
+                           motion_penalty_scale=args.motion_penalties)
     else:
         from frbench.training.run import ADAPTATION_METHOD
 
@@ -81,6 +90,10 @@ def run(args) -> int:
                 reward = humanoid_reward_config()
         if args.no_stability:
             reward = reward.without(STABILITY_TERMS, "stability-reward ablation (--no-stability)")
+        if args.motion_penalties is not None:
+            if args.motion_penalties < 0:
+                raise FrbenchError(f"--motion-penalties {args.motion_penalties}: expected a scale >= 0")
+            reward = with_motion_penalties(reward, args.motion_penalties, f"--motion-penalties {args.motion_penalties:g}")
         env_cfg = TrainEnvConfig(
             num_envs=args.envs, backend=args.backend, robot=args.robots, num_morphologies=args.morphologies,
             episode_steps=args.episode_steps, families=families, curriculum=not args.no_curriculum,
@@ -89,7 +102,6 @@ def run(args) -> int:
             **({"action_scale": args.action_scale} if args.action_scale is not None else {}),
         )
         out = args.out or Path("runs") / args.method
-        command = "frbench " + " ".join(shlex.quote(a) for a in sys.argv[1:])
         run_ = TrainingRun(out, args.method, env_cfg, int(args.steps), args.checkpoint_every, command,
                            teacher=args.teacher)
     run_.train()
