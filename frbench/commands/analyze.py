@@ -1,5 +1,6 @@
-"""``frbench analyze-mcp`` (the Mass-Contact Predictor's mass errors and contact accuracy on unseen robots) and
-``frbench plot-results`` (success against level per terrain family, from results files)."""
+"""``frbench analyze-mcp`` (the Mass-Contact Predictor's mass errors and contact accuracy on unseen robots),
+``frbench analyze-stand`` (body contacts and fidgeting while a policy is up) and ``frbench plot-results``
+(success against level per terrain family, from results files)."""
 
 from __future__ import annotations
 
@@ -18,6 +19,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, default=Path("docs/mcp"), help="folder for mcp_quality.json and mcp_heatmap.png")
     p.set_defaults(func=run)
 
+    s = sub.add_parser("analyze-stand", help="while a policy is up: body contacts per group and target changes, "
+                                             "per backend (why stable standing fails)")
+    s.add_argument("--policy", required=True)
+    s.add_argument("--robot", default="go2")
+    s.add_argument("--terrain", default="flat")
+    s.add_argument("--level", type=int, default=1)
+    s.add_argument("--seeds", default="0,1")
+    s.add_argument("--episodes", type=int, default=8)
+    s.add_argument("--backends", default="mujoco,pybullet")
+    s.add_argument("--out", type=Path, default=None, help="also write the report as JSON here")
+    s.set_defaults(func=run_standing)
+
     q = sub.add_parser("plot-results", help="success vs level per terrain family (PNG per family + Markdown table)")
     q.add_argument("results", nargs="+", type=Path, help="results JSON files written by frbench evaluate")
     q.add_argument("--lines", choices=("robot", "policy"), default="robot",
@@ -25,6 +38,22 @@ def register(sub: argparse._SubParsersAction) -> None:
     q.add_argument("--out", type=Path, required=True, help="folder for success_<family>.png and success.md")
     q.add_argument("--title", default="", help="figure title")
     q.set_defaults(func=run_plots)
+
+
+def run_standing(args) -> int:
+    """Run the cell in each backend and print (and optionally write) the standing report."""
+    import json
+
+    from frbench.analysis.standing import format_report, standing_analysis
+    from frbench.io import atomic_write_text
+
+    report = standing_analysis(args.policy, args.robot, tuple(b.strip() for b in args.backends.split(",")),
+                               args.terrain, args.level, tuple(int(s) for s in args.seeds.split(",")), args.episodes)
+    print(format_report(report))
+    if args.out is not None:
+        atomic_write_text(args.out, json.dumps(report, indent=1) + "\n")
+        print(f"wrote {args.out}")
+    return 0
 
 
 def run_plots(args) -> int:
