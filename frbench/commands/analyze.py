@@ -58,7 +58,12 @@ def run_standing(args) -> int:
 
 def run_plots(args) -> int:
     """Write the plots and the table; print the table."""
-    from frbench.analysis.success_plots import load_results, markdown_table, plot_families, success_table
+    from frbench.analysis.success_plots import (
+        load_results,
+        markdown_table,
+        plot_families,
+        success_table,
+    )
     from frbench.io import atomic_write_text
 
     table = success_table(load_results(args.results), series=args.lines)
