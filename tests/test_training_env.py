@@ -216,3 +216,14 @@ def test_rma_phase_two_runs_on_the_recovery_env_and_deploys_without_extrinsics(t
     assert policy.long_history.shape == (2, 50, 42) and np.isfinite(targets).all()
     with pytest.raises(Exception, match="extrinsics"):
         load_policy(str(tmp_path / "rma"))  # phase 1 needs privileged extrinsics: refused
+
+
+def test_learned_policy_names_keep_a_stem_that_starts_with_the_method():
+    from pathlib import Path
+
+    from frbench.policies.learned import policy_name
+
+    assert policy_name("frnet", Path("frbench/policies/checkpoints/frnet.pt")) == "frnet"
+    assert policy_name("ppo", Path("checkpoints/ppo-3m.pt")) == "ppo-3m"
+    assert policy_name("frnet", Path("runs/my run/policy.pt")) == "frnet-my-run"
+    assert policy_name("rma", Path("runs/rma-adaptation/policy.pt")) == "rma-adaptation"

@@ -32,11 +32,12 @@ def deployable_group_widths(num_actions: int, frames: int, long_frames: int = 0)
 
 
 def policy_name(method: str, checkpoint: Path) -> str:
-    """A results-safe name: the method, then the run folder or file stem when it differs (``frnet-myrun``)."""
+    """A results-safe name: the run folder or file stem when it starts with the method (``ppo-3m``), else the
+    method then the stem (``frnet-myrun``)."""
     import re
 
     stem = checkpoint.parent.name if checkpoint.name == "policy.pt" else checkpoint.stem
-    name = method if stem == method else f"{method}-{stem}"
+    name = stem if stem.startswith(method) else f"{method}-{stem}"
     return re.sub(r"[^A-Za-z0-9._-]", "-", name)[:64]
 
 
