@@ -6,7 +6,15 @@ import numpy as np
 import pytest
 
 from frbench.policies.registry import load_policy
-from frbench.policies.scripted_humanoid import HOLD, LIE, PUSH_A, ROLL, HumanoidScriptedPolicy
+from frbench.policies.scripted_humanoid import (
+    HOLD,
+    LIE,
+    PIKE,
+    PUSH_A,
+    PUSH_B,
+    ROLL,
+    HumanoidScriptedPolicy,
+)
 from frbench.robots import get_robot
 from tests.test_scripted import _obs
 
@@ -97,9 +105,82 @@ def test_prone_episode_in_mujoco_through_the_evaluator():
     assert record["success"] is PRONE_EPISODE_SUCCESS
 
 
-#: The measured outcome of the episode above: the controller pushes up onto hands and knees but does not
-#: yet get onto its feet (see the policy's module docstring). Flip this when it does.
+#: The measured outcome of the episode above: the controller tips onto its side during the push-up and never
+#: gets onto its feet (see the policy's module docstring). Flip this when it does.
 PRONE_EPISODE_SUCCESS = False
+
+
+def _episode(backend, seed, episode):
+    """One g1/flat/level-1 episode with the controller: (kind, pelvis heights (T,), phases (T,), success)."""
+    from frbench.tasks.initial_states import draw_starts
+    from frbench.tasks.recovery import EPISODE_STEPS, RecoveryTask
+    from frbench.terrains import make_terrain
+
+    spec = get_robot("g1")
+    terrain = make_terrain("flat", 1, seed)
+    starts = draw_starts(spec, terrain, "flat", 1, seed, [episode])
+    task = RecoveryTask(spec, backend, terrain, 1)
+    policy = HumanoidScriptedPolicy()
+    heights, phases = [], []
+    try:
+        obs = task.reset(starts)
+        policy.reset(spec, 1)
+        for _ in range(EPISODE_STEPS):
+            obs = task.step(policy.act(obs))
+            heights.append(task.state.base_pos[0, 2])
+            phases.append(int(policy.phase[0]))
+    finally:
+        task.close()
+    return starts.kinds[0], np.array(heights), np.array(phases), bool(task.success.success[0])
+
+
+def test_prone_push_up_tips_sideways_in_mujoco():
+    # measured status (module docstring): from this prone start the push-up tips the robot onto its left side,
+    # the pelvis never gets above 0.25 m and the pike is never reached
+    kind, heights, phases, success = _episode("mujoco", 1, 0)
+    assert kind == "prone"
+    assert PUSH_B in phases and PIKE not in phases
+    assert 0.15 < heights.max() < 0.35
+    assert success is False
+
+
+def test_hip_pitch_lock_in_a_deep_squat(monkeypatch):
+    # Why PIKE and SQUAT cannot unfold (module docstring): standing flat-footed in a squat (knees 2.6) with the
+    # hips flexed to -2.4 rad, a -1.5 rad hip target saturates both hip-pitch motors (88 N·m) and the hips stay
+    # below -2.4 rad; from -2.0 rad the same target is reached within 0.15 rad.
+    from frbench.tasks import recovery
+    from frbench.tasks.initial_states import (
+        FallenStarts,
+        _axis_quat,
+        lowest_offset_and_reach,
+    )
+    from frbench.terrains import make_terrain
+
+    monkeypatch.setattr(recovery, "SETTLE_GAIN_SCALE", 1.0)
+    monkeypatch.setattr(recovery, "SETTLE_STEPS", 0)
+    spec = get_robot("g1")
+    policy = HumanoidScriptedPolicy()
+    policy.reset(spec, 1)
+    hips = [spec.joint_names.index(f"{s}_hip_pitch_joint") for s in ("left", "right")]
+    final = {}
+    for hip in (-2.4, -2.0):
+        squat = {"hip_pitch": hip, "hip_roll": 0.1, "knee": 2.6, "ankle_pitch": -0.59, "waist_pitch": 0.3,
+                 "shoulder_pitch": -1.0, "shoulder_roll": 0.2, "elbow": 1.5}
+        q0, q1 = policy._pose(squat), policy._pose({**squat, "hip_pitch": -1.5})
+        quat = _axis_quat(1, -(hip + 2.6 - 0.59))  # pelvis pitched so that the feet are flat
+        lowest, _ = lowest_offset_and_reach(spec, quat, q0)
+        starts = FallenStarts(np.array([[0.0, 0.0, 0.05 - lowest]]), quat[None], q0[None], ["squat"])
+        task = recovery.RecoveryTask(spec, "mujoco", make_terrain("flat", 1, 0), 1)
+        try:
+            task.reset(starts)
+            for t in range(60):
+                task.step((q0 if t < 30 else q1)[None])
+            final[hip] = (task.state.q[0, hips], task.state.tau[0, hips])
+        finally:
+            task.close()
+    q_locked, tau_locked = final[-2.4]
+    assert (q_locked < -2.4).all() and (np.abs(tau_locked) > 85.0).all()
+    assert (np.abs(final[-2.0][0] - (-1.5)) < 0.15).all()
 
 
 @pytest.mark.slow

@@ -43,12 +43,42 @@ Phases:
 Falling over again (face up while pushing, piking or squatting, or tilted
 more than `FALLEN_GZ` while rising or holding) restarts from ``LIE``.
 
-Status (flat ground): it does not stand up yet (0 % success in ``frbench
-evaluate``). The push-up works from prone; the pike is reached from 2 of 5
-prone starts tried in MuJoCo (pelvis 0.5-0.6 m), fewer in PyBullet. In
-``SQUAT`` the weight does not move onto the feet: the knees drop to the
-ground (or the robot tips sideways) instead of the pelvis moving back over the
-heels. Rolls reach the side but mostly stall there before the belly.
+Status (flat ground): it does not stand up. ``frbench evaluate --policy
+scripted-humanoid --robots g1 --terrains flat --levels 1 --seeds 0,1
+--episodes 8``: 0/32 episodes, 0/16 in MuJoCo and 0/16 in PyBullet (per start
+kind, in each backend: prone 0/2, supine 0/5, left side 0/3, right side 0/4,
+random 0/2). Highest pelvis per episode 0.15-0.51 m in both backends; the one
+exception, seed 0 episode 6 (supine), is above 0.70 m at step ~20 only while
+still falling from its drawn start (0.72 m MuJoCo, 0.75 m PyBullet) and
+does not count. Where it fails (all measured, flat ground):
+
+* Prone starts of that grid never reach the pike: seed 0 episode 4 is rolled
+  onto its left side within the first 10 steps by the ``LIE`` interpolation
+  from the random start angles (and on onto its back in MuJoCo); seed 1 episode 0
+  tips onto its left side during ``PUSH_B`` (MuJoCo, pelvis at most 0.25 m)
+  or ``LIFT`` (PyBullet, 0.33 m). With ``LIE`` lengthened to 20 + 20 steps
+  the same MuJoCo start reaches ``PIKE`` (pelvis 0.41 m) instead; the earlier
+  version of this note saw the pike from 2 of 5 other prone starts in MuJoCo.
+* Hip lock (MuJoCo; robot spawned standing flat-footed in a squat, knees 2.6,
+  full gains): with the hips flexed to about -2.47 rad both hip-pitch motors
+  saturate at their 88 N·m limit and the hips do not extend at all when asked
+  for -1.5 rad; from -2.0 rad they extend. ``PIKE`` (-2.48) and ``SQUAT``
+  (-2.45) ask for that region (see ``test_hip_pitch_lock_in_a_deep_squat``).
+* A deep squat (hips -2.2 to -2.4, knees 2.7, ankles -0.8, waist pitch 0.45,
+  arms forward) holds statically in MuJoCo, pelvis pitched about 0.55 rad.
+  Rising from it through key poses chosen with a static centre-of-mass model
+  (CoM 3-7 cm ahead of the ankles, feet flat), open loop or with the foot tilt
+  (measured pelvis pitch minus -(hip + knee + ankle pitch)) fed back onto hip
+  pitch, tipped forward onto the hands (pelvis 0.5-0.6 m) or back onto the
+  buttocks; none reached 0.7 m. A fast rise does pass 0.7 m but does not
+  stay up: interpolating from that squat (hips -2.3) to a slightly flexed
+  standing pose (hips -0.5, knees 0.4, arms forward) in 12 control steps
+  lifts the pelvis to 0.77 m, then the robot falls on its back (0.09 m), even
+  with a crouched catch pose commanded right after; in 16 steps it peaks at
+  0.62-0.69 m and tips forward (pelvis 0.5 m). So the missing pieces are a balance
+  controller for the squat-to-stand rise and a reliable way from the push-up
+  into a squat with the hips above about -2.2 rad.
+* Rolls from the back reach the side but mostly stall there.
 """
 
 from __future__ import annotations
