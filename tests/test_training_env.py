@@ -123,16 +123,21 @@ def test_a_resumed_run_can_start_a_reward_stage_with_the_papers_motion_penalties
 
     cfg = TrainEnvConfig(num_envs=4, episode_steps=5, settle_steps=2, num_morphologies=2, families=("flat",))
     TrainingRun(tmp_path / "run", "ppo", cfg, total_steps=4 * 24, checkpoint_every=1).train(progress_bar=False)
+    from frbench.commands.train import reward_weight_changes
+
+    changes = reward_weight_changes(1.0, ["action_smoothing=-0.1"])
+    assert changes == {"joint_velocity": -1e-2, "joint_acceleration": -2.5e-6, "joint_torques": -5e-4,
+                       "action_smoothing": -0.1}
     staged = TrainingRun(tmp_path / "run", total_steps=4 * 24 * 2, resume=True, checkpoint_every=1,
-                         command="frbench train --resume run --motion-penalties 1", motion_penalty_scale=1.0)
+                         command="frbench train --resume run --motion-penalties 1", reward_stage=changes)
     for term in ("joint_velocity", "joint_acceleration", "joint_torques"):
         assert staged.env.reward_cfg.weights[term] == PAPER_WEIGHTS[term]
+    assert staged.env.reward_cfg.weights["action_smoothing"] == -0.1
     assert staged.env.reward_cfg.weights["safety_force"] == pytest.approx(0.1 * PAPER_WEIGHTS["safety_force"])
     assert staged.env_steps == 96
     staged.train(progress_bar=False)
     config = json.loads((tmp_path / "run" / "config.json").read_text())
-    assert config["stages"] == [{"from_env_steps": 96, "motion_penalty_scale": 1.0,
-                                 "terms": ["joint_velocity", "joint_acceleration", "joint_torques"],
+    assert config["stages"] == [{"from_env_steps": 96, "weights": changes,
                                  "command": "frbench train --resume run --motion-penalties 1"}]
     # the policy checkpoint carries the staged config; a plain resume keeps the stage's weights
     data = torch.load(tmp_path / "run" / "policy.pt", weights_only=True)
@@ -140,7 +145,11 @@ def test_a_resumed_run_can_start_a_reward_stage_with_the_papers_motion_penalties
     again = TrainingRun(tmp_path / "run", resume=True)
     assert again.env.reward_cfg.weights["joint_velocity"] == PAPER_WEIGHTS["joint_velocity"]
     with pytest.raises(FrbenchError, match="expected a scale >= 0"):
-        TrainingRun(tmp_path / "run", resume=True, motion_penalty_scale=-1.0)
+        reward_weight_changes(-1.0, [])
+    with pytest.raises(FrbenchError, match="expected TERM=WEIGHT, e.g. action_smoothing=-0.1"):
+        reward_weight_changes(None, ["action_smoothing"])
+    with pytest.raises(FrbenchError, match=r"unknown reward terms \['smoothness'\]"):
+        reward_weight_changes(None, ["smoothness=-1"])
 
 
 def test_train_refuses_to_overwrite_a_run(tmp_path):

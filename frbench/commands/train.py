@@ -36,6 +36,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--motion-penalties", type=float, default=None, metavar="SCALE",
                    help="joint velocity/acceleration/torque penalties at SCALE x the paper's weights (new runs: "
                         "default 0.1; with --resume: a new reward stage from the run's current step)")
+    p.add_argument("--reward-weight", action="append", default=[], metavar="TERM=WEIGHT",
+                   help="set one reward term's weight (repeatable; with --resume: part of a new reward stage)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--checkpoint-every", type=int, default=20, help="iterations between checkpoints")
     p.add_argument("--out", type=Path, default=None, help="run folder (default runs/<method>)")
@@ -43,24 +45,46 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def reward_weight_changes(motion_penalties: float | None, assignments: list[str]) -> dict[str, float]:
+    """Reward term → weight from ``--motion-penalties SCALE`` and ``--reward-weight TERM=WEIGHT`` (validated)."""
+    from frbench.errors import FrbenchError
+    from frbench.training.env import MOTION_PENALTY_TERMS
+    from frbench.training.rewards import PAPER_WEIGHTS, check_weights
+
+    weights = {}
+    if motion_penalties is not None:
+        if not motion_penalties >= 0:
+            raise FrbenchError(f"--motion-penalties {motion_penalties}: expected a scale >= 0 of the paper's weights")
+        weights.update({t: motion_penalties * PAPER_WEIGHTS[t] for t in MOTION_PENALTY_TERMS})
+    for item in assignments:
+        term, sep, value = item.partition("=")
+        try:
+            weights[term.strip()] = float(value)
+        except ValueError:
+            sep = ""
+        if not sep:
+            raise FrbenchError(f"--reward-weight {item!r}: expected TERM=WEIGHT, e.g. action_smoothing=-0.1")
+    try:
+        check_weights(weights)
+    except ValueError as exc:
+        raise FrbenchError(f"--reward-weight: {exc}") from None
+    return weights
+
+
 def run(args) -> int:
     """Create (or resume) the run and train it to its budget."""
     from frbench.errors import FrbenchError
     from frbench.terrains import FAMILIES
-    from frbench.training.env import (
-        TrainEnvConfig,
-        training_reward_config,
-        with_motion_penalties,
-    )
+    from frbench.training.env import TrainEnvConfig, training_reward_config
     from frbench.training.methods import METHODS
     from frbench.training.rewards import STABILITY_TERMS
     from frbench.training.run import TrainingRun
 
     command = "frbench " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+    weights = reward_weight_changes(args.motion_penalties, args.reward_weight)
     if args.resume:
         run_ = TrainingRun(args.resume, total_steps=int(args.steps) if args.steps else None, resume=True,
-                           checkpoint_every=args.checkpoint_every, command=command,
-                           motion_penalty_scale=args.motion_penalties)
+                           checkpoint_every=args.checkpoint_every, command=command, reward_stage=weights)
     else:
         from frbench.training.run import ADAPTATION_METHOD
 
@@ -90,10 +114,8 @@ def run(args) -> int:
                 reward = humanoid_reward_config()
         if args.no_stability:
             reward = reward.without(STABILITY_TERMS, "stability-reward ablation (--no-stability)")
-        if args.motion_penalties is not None:
-            if args.motion_penalties < 0:
-                raise FrbenchError(f"--motion-penalties {args.motion_penalties}: expected a scale >= 0")
-            reward = with_motion_penalties(reward, args.motion_penalties, f"--motion-penalties {args.motion_penalties:g}")
+        for term, weight in weights.items():
+            reward = reward.with_weight(term, weight, f"set on the command line ({command})")
         env_cfg = TrainEnvConfig(
             num_envs=args.envs, backend=args.backend, robot=args.robots, num_morphologies=args.morphologies,
             episode_steps=args.episode_steps, families=families, curriculum=not args.no_curriculum,

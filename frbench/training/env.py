@@ -92,21 +92,14 @@ MOTION_PENALTY_TERMS = ("joint_velocity", "joint_acceleration", "joint_torques")
 MOTION_PENALTY_SCALE = 0.1
 
 
-def with_motion_penalties(config: RewardConfig, scale: float, reason: str) -> RewardConfig:
-    """``config`` with the `MOTION_PENALTY_TERMS` at ``scale`` × the paper's weights (``reason`` recorded)."""
-    from frbench.training.rewards import PAPER_WEIGHTS
-
-    for term in MOTION_PENALTY_TERMS:
-        config = config.with_weight(term, scale * PAPER_WEIGHTS[term], reason)
-    return config
-
-
 def training_reward_config() -> "RewardConfig":
     """The paper's reward table, motion and knee-force penalties x0.1, plus a base-height term (reasons recorded
     in the config)."""
     from frbench.training.rewards import PAPER_WEIGHTS
 
-    config = with_motion_penalties(RewardConfig(), MOTION_PENALTY_SCALE, MOTION_PENALTY_REASON)
+    config = RewardConfig()
+    for term in MOTION_PENALTY_TERMS:
+        config = config.with_weight(term, MOTION_PENALTY_SCALE * PAPER_WEIGHTS[term], MOTION_PENALTY_REASON)
     config = config.with_weight("safety_force", 0.1 * PAPER_WEIGHTS["safety_force"], SAFETY_FORCE_REASON)
     config = config.with_weight("base_height", 6.0, HEIGHT_REASON)
     return dataclasses.replace(config, posture_sigma2=POSTURE_SIGMA2)

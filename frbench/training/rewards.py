@@ -92,6 +92,7 @@ __all__ = [
     "base_orientation",
     "body_bias",
     "body_contact",
+    "check_weights",
     "compute_rewards",
     "feet_contact",
     "feet_on_ground",
@@ -476,6 +477,16 @@ class RewardConfig:
         else:
             reasons[name] = reason
         return replace(self, weights=weights, overrides_reason=reasons)
+
+
+def check_weights(weights: dict[str, float]) -> None:
+    """Raise ``ValueError`` naming any unknown term or non-finite weight of a term → weight mapping."""
+    unknown = sorted(set(weights) - set(REWARD_TERMS))
+    if unknown:
+        raise ValueError(f"unknown reward terms {unknown}; valid terms: {', '.join(sorted(REWARD_TERMS))}")
+    bad = {k: v for k, v in weights.items() if not np.isfinite(v)}
+    if bad:
+        raise ValueError(f"reward weights must be finite numbers, got {bad}")
 
 
 def compute_rewards(inputs: RewardInputs, config: RewardConfig | None = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:

@@ -98,14 +98,14 @@ class TrainingRun:
 
     def __init__(self, out: Path, method: str | None = None, env_cfg=None, total_steps: int | None = None,
                  checkpoint_every: int = 20, command: str = "", resume: bool = False, teacher: Path | None = None,
-                 motion_penalty_scale: float | None = None):
+                 reward_stage: dict[str, float] | None = None):
         """``method="rma-adaptation"`` is RMA's phase 2: ``teacher`` is a finished ``rma`` run folder whose
         policy is frozen while the adaptation module learns; its env config is reused (with a 50-frame
         long history), ``env_cfg`` is ignored.
 
-        ``motion_penalty_scale`` (with ``resume``) starts a new reward stage: from the run's current env step
-        on, the joint velocity/acceleration/torque penalties weigh this many times the paper's weights. The
-        change and ``command`` are appended to ``config["stages"]``, so the checkpoint says which reward
+        ``reward_stage`` (with ``resume``), reward term → new weight, starts a new reward stage from the run's
+        current env step (e.g. the motion penalties at the paper's weights once the policy gets up). The
+        changes and ``command`` are appended to ``config["stages"]``, so the checkpoint says which reward
         trained which steps."""
         import torch
 
@@ -122,8 +122,8 @@ class TrainingRun:
             method, env_cfg = config["method"], env_cfg_from_dict(config["env"])
             total_steps = total_steps or config["total_steps"]
             train_cfg = config["train_cfg"]
-            if motion_penalty_scale is not None:
-                env_cfg = self._new_reward_stage(config, env_cfg, motion_penalty_scale, command)
+            if reward_stage:
+                env_cfg = self._new_reward_stage(config, env_cfg, reward_stage, command)
         else:
             if (self.out / CONFIG_FILE).exists():
                 raise FrbenchError(f"--out {self.out}: a run is already there; use --resume {self.out} or another name")
@@ -153,24 +153,22 @@ class TrainingRun:
             self.runner.load(str(Path(config["teacher"]) / RUNNER_FILE))  # π, μ and normalisers, then frozen
 
     # ------------------------------------------------------------------ persistence
-    def _new_reward_stage(self, config: dict, env_cfg, scale: float, command: str):
-        """The env config with the motion penalties at ``scale`` × the paper's weights; records the stage in
-        ``config`` and rewrites config.json (see ``__init__``)."""
+    def _new_reward_stage(self, config: dict, env_cfg, weights: dict[str, float], command: str):
+        """The env config with the reward ``weights`` changed; records the stage in ``config`` and rewrites
+        config.json (see ``__init__``)."""
         import torch
 
-        from frbench.training.env import MOTION_PENALTY_TERMS, with_motion_penalties
+        from frbench.training.rewards import check_weights
 
-        if not scale >= 0.0:
-            raise FrbenchError(f"--motion-penalties {scale}: expected a scale >= 0 of the paper's weights")
-        reason = (f"stage from {{steps}} env steps: x{scale:g} of the paper's weights, to calm the stand of a "
-                  "policy that already gets up (see docs/training.md)")
+        check_weights(weights)
         state_path = self.out / STATE_FILE
         steps = int(torch.load(state_path, weights_only=False)["env_steps"]) if state_path.is_file() else 0
-        reward = with_motion_penalties(env_cfg.reward, scale, reason.format(steps=steps))
+        reward = env_cfg.reward
+        for term, weight in weights.items():
+            reward = reward.with_weight(term, weight, f"reward stage from {steps} env steps ({command or 'resume'})")
         env_cfg = dataclasses.replace(env_cfg, reward=reward)
         config["env"] = _env_cfg_to_dict(env_cfg)
-        config.setdefault("stages", []).append({"from_env_steps": steps, "motion_penalty_scale": scale,
-                                                "terms": list(MOTION_PENALTY_TERMS), "command": command})
+        config.setdefault("stages", []).append({"from_env_steps": steps, "weights": dict(weights), "command": command})
         atomic_write_text(self.out / CONFIG_FILE, json.dumps(config, indent=1) + "\n")
         return env_cfg
 
