@@ -1,6 +1,7 @@
 """``frbench analyze-mcp`` (the Mass-Contact Predictor's mass errors and contact accuracy on unseen robots),
-``frbench analyze-stand`` (body contacts and fidgeting while a policy is up) and ``frbench plot-results``
-(success against level per terrain family, from results files)."""
+``frbench analyze-stand`` (body contacts and fidgeting while a policy is up), ``frbench plot-results``
+(success against level per terrain family, from results files) and ``frbench compare`` (methods side by
+side, from results files)."""
 
 from __future__ import annotations
 
@@ -31,6 +32,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     s.add_argument("--out", type=Path, default=None, help="also write the report as JSON here")
     s.set_defaults(func=run_standing)
 
+    c = sub.add_parser("compare", help="methods side by side: level-10 success beside the paper's, MuJoCo vs "
+                                       "PyBullet per family, displacement on level-10 stairs and slopes")
+    c.add_argument("results", nargs="+", type=Path, help="results JSON files written by frbench evaluate")
+    c.add_argument("--out", type=Path, default=None, help="also write the tables to this Markdown file")
+    c.set_defaults(func=run_compare)
+
     q = sub.add_parser("plot-results", help="success vs level per terrain family (PNG per family + Markdown table)")
     q.add_argument("results", nargs="+", type=Path, help="results JSON files written by frbench evaluate")
     q.add_argument("--lines", choices=("robot", "policy"), default="robot",
@@ -52,6 +59,29 @@ def run_standing(args) -> int:
     print(format_report(report))
     if args.out is not None:
         atomic_write_text(args.out, json.dumps(report, indent=1) + "\n")
+        print(f"wrote {args.out}")
+    return 0
+
+
+def run_compare(args) -> int:
+    """Print (and optionally write) the three comparison tables."""
+    from frbench.analysis.comparison import (
+        displacement_table,
+        level10_table,
+        sim_to_sim_table,
+    )
+    from frbench.analysis.success_plots import load_results
+    from frbench.io import atomic_write_text
+
+    results = load_results(args.results)
+    text = (f"Level-10 success [%], ours / the paper's\n\n{level10_table(results)}\n"
+            f"MuJoCo / PyBullet success [%] per family (difference), mean |gap| over robot x level cells [points]\n\n"
+            f"{sim_to_sim_table(results)}\n"
+            f"Largest displacement from the start within an episode [m], mean (90th percentile)\n\n"
+            f"{displacement_table(results)}")
+    print(text)
+    if args.out is not None:
+        atomic_write_text(args.out, text)
         print(f"wrote {args.out}")
     return 0
 
