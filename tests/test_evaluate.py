@@ -13,8 +13,14 @@ from frbench.backends.base import RobotState
 from frbench.cli import main
 from frbench.errors import PolicyError
 from frbench.evaluation.runner import Cell, run_cell
+from frbench.policies.registry import BUDGET_3M_POLICIES
 from frbench.robots import get_robot
-from frbench.tasks.initial_states import DROP_HEIGHT, FALL_KINDS, draw_starts, lowest_offset_and_reach
+from frbench.tasks.initial_states import (
+    DROP_HEIGHT,
+    FALL_KINDS,
+    draw_starts,
+    lowest_offset_and_reach,
+)
 from frbench.terrains import FAMILIES, make_terrain, support_height
 
 
@@ -94,7 +100,7 @@ class _BadPolicy:
     (lambda n: np.full((n, 12), np.inf), "policy 'bad' returned infinite targets"),
 ])
 def test_a_misbehaving_policy_is_stopped_with_its_name(monkeypatch, output, message):
-    import frbench.evaluation.runner as runner
+    from frbench.evaluation import runner
 
     monkeypatch.setattr(runner, "_policy", lambda reference: _BadPolicy(output))
     with pytest.raises(PolicyError, match=re.escape(message)):
@@ -221,6 +227,24 @@ def test_terrain_show_writes_a_png(tmp_path):
     import imageio.v3 as iio
 
     assert iio.imread(out).shape == (90, 120, 3)
+
+
+@pytest.mark.parametrize("name", BUDGET_3M_POLICIES)
+def test_each_equal_budget_checkpoint_is_shipped_with_its_budget_and_acts(name):
+    import torch
+
+    from frbench.policies.registry import load_policy, shipped_checkpoint
+
+    data = torch.load(shipped_checkpoint(name), weights_only=True)
+    assert data["format"] == "frbench-policy-v1" and data["env_steps"] == 3_072_000
+    assert name.startswith(data["method"])
+    policy = load_policy(name)
+    assert policy.name == name and policy.supports(get_robot("go2"))
+    policy.reset(get_robot("go2"), 2)
+    obs = {"base_angvel": np.zeros((2, 3)), "projected_gravity": np.tile([0.0, 0.0, 1.0], (2, 1)),
+           "joint_pos": np.tile(get_robot("go2").default_pose, (2, 1)), "joint_vel": np.zeros((2, 12)),
+           "previous_action": np.tile(get_robot("go2").default_pose, (2, 1))}
+    assert np.isfinite(policy.act(obs)).all()
 
 
 def test_the_shipped_frnet_checkpoint_loads_and_acts():
