@@ -64,7 +64,7 @@ def level10_table(results: list[dict], level: int = 10) -> str:
 
 def sim_to_sim_table(results: list[dict]) -> str:
     """Per policy and family: "MuJoCo / PyBullet (difference)" [%], and the mean |gap| over cells [points]."""
-    rates: dict[tuple, list[float]] = defaultdict(list)  # (policy, family, robot, level) -> backend -> rates
+    rates: dict[tuple, list[float]] = defaultdict(list)  # (policy, family, robot, level, backend) -> rates
     for data in results:
         for cell in data["cells"]:
             key = (data["policy"]["name"], cell["terrain"], cell["robot"], cell["level"], cell["backend"])
