@@ -39,9 +39,11 @@ def _method_of(name: str) -> str | None:
 
 
 def _families(results: list[dict]) -> list[str]:
-    order = ("flat", "rough", "slopes", "stairs", "stones", "gaps", "beams")
+    """The families present in ``results``, in frbench's order."""
+    from frbench.terrains import FAMILIES
+
     seen = {c["terrain"] for data in results for c in data["cells"]}
-    return [f for f in order if f in seen] + sorted(seen - set(order))
+    return [f for f in FAMILIES if f in seen] + sorted(seen - set(FAMILIES))
 
 
 def level10_table(results: list[dict], level: int = 10) -> str:

@@ -66,10 +66,8 @@ def standing_analysis(policy_reference: str, robot: str, backends=("mujoco", "py
     from frbench.policies.registry import load_policy
     from frbench.robots import get_robot
     from frbench.tasks.initial_states import draw_starts
-    from frbench.tasks.observations import projected_gravity
     from frbench.tasks.recovery import EPISODE_STEPS, RecoveryTask
-    from frbench.tasks.success import MAX_TILT_DEG, MIN_HEIGHT_FRACTION
-    from frbench.terrains import height_at, make_terrain
+    from frbench.terrains import make_terrain
 
     spec = get_robot(robot)
     policy = load_policy(policy_reference)
@@ -87,12 +85,8 @@ def standing_analysis(policy_reference: str, robot: str, backends=("mujoco", "py
                 for _ in range(EPISODE_STEPS):
                     targets = policy.act(obs)
                     obs = task.step(targets)
-                    s = task.state
-                    up = ((projected_gravity(s.base_quat)[:, 2] <= -np.cos(np.radians(MAX_TILT_DEG)))
-                          & (s.base_pos[:, 2] - height_at(world, s.base_pos[:, :2])
-                             >= MIN_HEIGHT_FRACTION * spec.nominal_height))
                     change = None if previous is None else np.abs(targets - previous).mean(axis=1)
-                    tally.add_step(up, task.backend.contacts().group_contact, change)
+                    tally.add_step(task.success.up_pose(task.signals), task.contacts.group_contact, change)
                     previous = targets
                 tally.episodes += episodes
                 tally.successes += int(task.success.success.sum())

@@ -36,6 +36,9 @@ class RecoveryTask:
         terrain: a `frbench.terrains.Terrain`.
         num_envs: episodes run side by side.
         noise_rng: a generator for sensor noise, or None for none (the default).
+
+    After each ``step``: ``state`` (`RobotState`), ``contacts`` (`Contacts`) and ``signals`` (the
+    `StepSignals` the success test read) of that step.
     """
 
     def __init__(self, spec: RobotSpec, backend: str, terrain, num_envs: int, noise_rng=None):
@@ -87,10 +90,10 @@ class RecoveryTask:
         self.backend.step(targets)
         self.previous_action = targets
         self.state = self.backend.state()
-        contacts = self.backend.contacts()
+        self.contacts = contacts = self.backend.contacts()
         diverged = self.backend.diverged | self.settle_diverged
         displacement = np.linalg.norm(self.state.base_pos[:, :2] - self.start_xy, axis=1)
-        signals = StepSignals(
+        self.signals = signals = StepSignals(
             gravity_z=projected_gravity(self.state.base_quat)[:, 2],
             height=self._height_above_terrain(self.state.base_pos),
             body_contact=contacts.group_contact.any(axis=1),

@@ -68,11 +68,14 @@ class SuccessTracker:
         scale = nominal_height / HUMANOID_REFERENCE_HEIGHT
         self.up_height, self.floor_height = HUMANOID_UP_HEIGHT * scale, HUMANOID_FLOOR_HEIGHT * scale
 
+    def up_pose(self, s: StepSignals) -> np.ndarray:
+        """(N,) tilt and height conditions of the quadruped test (body contact not considered)."""
+        tilt_ok = s.gravity_z <= -np.cos(np.radians(MAX_TILT_DEG))
+        return tilt_ok & (s.height >= MIN_HEIGHT_FRACTION * self.nominal_height)
+
     def upright(self, s: StepSignals) -> np.ndarray:
         """(N,) the quadruped stability condition at this step."""
-        tilt_ok = s.gravity_z <= -np.cos(np.radians(MAX_TILT_DEG))
-        height_ok = s.height >= MIN_HEIGHT_FRACTION * self.nominal_height
-        return tilt_ok & height_ok & ~s.body_contact
+        return self.up_pose(s) & ~s.body_contact
 
     def update(self, s: StepSignals, alive: np.ndarray | None = None) -> None:
         """Feed one control step (``alive`` False for diverged episodes, which cannot succeed)."""
