@@ -236,3 +236,74 @@ def test_learned_policy_names_keep_a_stem_that_starts_with_the_method():
     assert policy_name("ppo", Path("checkpoints/ppo-3m.pt")) == "ppo-3m"
     assert policy_name("frnet", Path("runs/my run/policy.pt")) == "frnet-my-run"
     assert policy_name("rma", Path("runs/rma-adaptation/policy.pt")) == "rma-adaptation"
+
+
+def test_a_resumed_run_can_widen_a_morphology_range_and_redraws_its_robots(tmp_path):
+    from frbench.commands.train import morphology_range_changes
+    from frbench.training.run import TrainingRun
+
+    cfg = TrainEnvConfig(num_envs=4, episode_steps=5, settle_steps=2, num_morphologies=2, families=("flat",))
+    first = TrainingRun(tmp_path / "run", "ppo", cfg, total_steps=4 * 24, checkpoint_every=1)
+    first.train(progress_bar=False)
+    assert all(0.013 <= m.calf_height <= 0.019 for m in first.env.morphologies)
+    ranges = morphology_range_changes(["calf_height=0.040,0.045", "calf_width=0.030,0.040"])
+    assert ranges == {"calf_height": (0.040, 0.045), "calf_width": (0.030, 0.040)}
+    staged = TrainingRun(tmp_path / "run", total_steps=4 * 24 * 2, resume=True, checkpoint_every=1,
+                         command="frbench train --resume run --morphology-range ...", morphology_stage=ranges)
+    assert [0.040 <= m.calf_height <= 0.045 and 0.030 <= m.calf_width <= 0.040 for m in staged.env.morphologies] \
+        == [True, True]
+    assert staged.env_steps == 96
+    config = json.loads((tmp_path / "run" / "config.json").read_text())
+    assert config["stages"][-1]["morphology_ranges"] == {"calf_height": [0.040, 0.045], "calf_width": [0.030, 0.040]}
+    assert config["env"]["morphology_ranges"]["calf_height"] == [0.040, 0.045]
+    again = TrainingRun(tmp_path / "run", resume=True)  # a plain resume keeps the widened table
+    assert all(0.040 <= m.calf_height <= 0.045 for m in again.env.morphologies)
+    with pytest.raises(FrbenchError, match="'calf_girth': not a randomised field"):
+        morphology_range_changes(["calf_girth=0.01,0.02"])
+    with pytest.raises(FrbenchError, match="expected FIELD=LOW,HIGH"):
+        morphology_range_changes(["calf_width=0.02"])
+    with pytest.raises(FrbenchError, match=r"calf_width=\(0.05, 0.02\): expected finite 0 < low <= high"):
+        morphology_range_changes(["calf_width=0.05,0.02"])
+
+
+def test_the_assist_force_lifts_with_a_fraction_of_the_weight_and_fades_out():
+    cfg = TrainEnvConfig(num_envs=2, episode_steps=3, settle_steps=2, num_morphologies=2, families=("flat",),
+                         assist_force=0.8, assist_until=12)
+    env = RecoveryTrainingEnv(cfg)
+    weight = env.env_masses.sum(axis=1) * 9.81
+    np.testing.assert_allclose(env.backend._base_force[:, 2], 0.8 * weight)
+    np.testing.assert_allclose(env.backend._base_force[:, :2], 0.0)
+    for _ in range(3):  # one episode: 6 env steps of 12, the next episode gets 0.8 · (1 - 6/12)
+        env.step(torch.zeros(2, env.num_actions))
+    assert env.last_episode_stats["assist_fraction"] == pytest.approx(0.8)  # the episode that just ended
+    np.testing.assert_allclose(env.backend._base_force[:, 2], 0.4 * weight)
+    for _ in range(3):
+        env.step(torch.zeros(2, env.num_actions))
+    np.testing.assert_allclose(env.backend._base_force, 0.0)
+    assert env.assist_fraction == 0.0
+
+
+@pytest.mark.parametrize("backend", ["mujoco", "pybullet"])
+def test_a_base_force_of_one_and_a_half_weights_lifts_the_robot_at_half_g(backend):
+    from frbench.backends import make_backend
+    from frbench.backends.base import RobotState
+    from frbench.robots import get_robot
+
+    spec = get_robot("go2")
+    sim = make_backend(backend, spec, 2)
+    try:
+        mass = sim.mass_properties()[0] if backend == "mujoco" else np.full(2, 16.085)
+        force = np.zeros((2, 3))
+        force[0, 2] = 1.5 * mass[0] * 9.81
+        sim.set_base_force(force)
+        start = RobotState.standing(spec, 2, clearance=0.2)  # in the air: no contact forces
+        sim.reset(np.arange(2), start)
+        for _ in range(5):  # 0.1 s
+            sim.step(np.tile(spec.default_pose, (2, 1)))
+        vz = sim.state().base_linvel[:, 2]
+        assert vz[0] == pytest.approx(0.5 * 9.81 * 0.1, rel=0.03)   # + half g
+        assert vz[1] == pytest.approx(-9.81 * 0.1, rel=0.03)        # free fall
+        with pytest.raises(ValueError, match=r"expected a finite \(2, 3\) array"):
+            sim.set_base_force(np.zeros(3))
+    finally:
+        sim.close()

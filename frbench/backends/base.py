@@ -190,6 +190,10 @@ class Backend(Protocol):
     def mass_properties(self) -> tuple[np.ndarray, np.ndarray]:
         """(total robot mass [kg] (N,), whole-body CoM [m] (N, 3)) as the simulator holds them."""
 
+    def set_base_force(self, force: np.ndarray) -> None:
+        """Apply ``force`` [N] (N, 3, world frame) at each root link's centre of mass in every later physics
+        step, until changed (training aids such as a vertical assist force; evaluation never sets it)."""
+
     def close(self) -> None:
         """Free the simulator."""
 
@@ -230,6 +234,14 @@ def summarize_contacts(spec: RobotSpec, link_names: tuple[str, ...], link_force:
 def _feet_and_rest(link_names: tuple[str, ...], foot_links: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
     feet = np.array([link_names.index(f) for f in foot_links])
     return feet, np.setdiff1d(np.arange(len(link_names)), feet)
+
+
+def check_base_force(force: np.ndarray, num_envs: int) -> np.ndarray:
+    """``force`` as a finite (num_envs, 3) float array [N], or a ValueError naming the problem."""
+    force = np.asarray(force, dtype=float)
+    if force.shape != (num_envs, 3) or not np.isfinite(force).all():
+        raise ValueError(f"base force: expected a finite ({num_envs}, 3) array [N], got shape {force.shape}")
+    return force.copy()
 
 
 def check_targets(joint_targets: np.ndarray, num_envs: int, n_joints: int) -> np.ndarray:

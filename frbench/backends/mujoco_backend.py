@@ -20,6 +20,7 @@ from frbench.backends.base import (
     PhysicsParams,
     RobotState,
     actuator_torque,
+    check_base_force,
     check_targets,
     divergence_mask,
     summarize_contacts,
@@ -77,6 +78,8 @@ class MujocoBackend:
         self._qvel = self.batch.bind("qvel")
         self._ctrl = self.batch.bind("ctrl")
         self._cfrc_ext = self.batch.bind("cfrc_ext")
+        self._xfrc_applied = self.batch.bind("xfrc_applied")
+        self._base_force = np.zeros((self.num_envs, 3))
         self._terrain_geoms = np.array(
             [g for g in range(self.model.ngeom) if self.model.geom_bodyid[g] == 0], dtype=int
         )
@@ -102,6 +105,13 @@ class MujocoBackend:
         mass[:, self._root_body] = self._base_mass + payload
         self.batch.set_const()
 
+    def set_base_force(self, force: np.ndarray) -> None:
+        """A force [N] (N, 3), world frame, on each root body's centre of mass during every later physics step."""
+        self._base_force = check_base_force(force, self.num_envs)
+        xfrc = np.array(self._xfrc_applied)
+        xfrc[:, self._root_body, 0:3] = self._base_force
+        self._xfrc_applied[:] = xfrc
+
     # ------------------------------------------------------------------ state
     def reset(self, ids, state: RobotState) -> None:
         """Place simulations ``ids`` in ``state`` (zero velocities if the state has none)."""
@@ -109,6 +119,8 @@ class MujocoBackend:
         if ids.size == 0:
             return
         self.batch.reset(ids, stage=mujoco.mjtStage.mjSTAGE_NONE)
+        if self._base_force[ids].any():  # mj_resetData cleared xfrc_applied
+            self.set_base_force(self._base_force)
         qpos = self._qpos[ids]
         qvel = np.zeros((ids.size, self.model.nv))
         qpos[:, 0:3] = state.base_pos

@@ -32,6 +32,7 @@ from frbench.backends.base import (
     PhysicsParams,
     RobotState,
     actuator_torque,
+    check_base_force,
     check_targets,
     divergence_mask,
     summarize_contacts,
@@ -134,6 +135,7 @@ class PybulletBackend:
         ]
         self.diverged = np.zeros(self.num_envs, dtype=bool)
         self._tau = np.zeros((self.num_envs, spec.n_joints))
+        self._base_force = np.zeros((self.num_envs, 3))
         self._limits = np.asarray(spec.torque_limits)
         self._state: RobotState | None = None
         self.params = PhysicsParams.nominal(spec, self.num_envs)
@@ -147,6 +149,10 @@ class PybulletBackend:
                 sim.client.changeDynamics(body, -1, lateralFriction=float(params.friction[i]))
             sim.client.changeDynamics(sim.robot, -1, mass=float(sim.base_mass + payload[i]))
         self.params = params
+
+    def set_base_force(self, force: np.ndarray) -> None:
+        """A force [N] (N, 3), world frame, on each root link's centre of mass during every later physics step."""
+        self._base_force = check_base_force(force, self.num_envs)
 
     # ------------------------------------------------------------------ state
     def reset(self, ids, state: RobotState) -> None:
@@ -177,10 +183,13 @@ class PybulletBackend:
             if self.diverged[i]:
                 continue
             c, robot, joints, target = sim.client, sim.robot, sim.joints, targets[i]
+            force = self._base_force[i].tolist() if self._base_force[i].any() else None
             for _ in range(self.substeps):  # the hot loop: keep it lean
                 q, qd = _joint_arrays(c.getJointStates(robot, joints))
                 tau = actuator_torque(params, limits, target, q, qd, i)
                 c.setJointMotorControlArray(robot, joints, p.TORQUE_CONTROL, forces=tau.tolist())
+                if force is not None:  # Bullet clears external forces after every stepSimulation
+                    c.applyExternalForce(robot, -1, force, c.getBasePositionAndOrientation(robot)[0], p.WORLD_FRAME)
                 c.stepSimulation()
             self._tau[i] = tau
         self._state = self._read_state()

@@ -31,6 +31,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "(annealed to 0 at --demo-until; default 0: off)")
     p.add_argument("--demo-until", type=float, default=None, metavar="STEPS",
                    help="env steps at which the demo-start fraction reaches 0 (default: half the budget)")
+    p.add_argument("--assist-force", type=float, default=0.0, metavar="FRACTION",
+                   help="vertical assist force on the base as a fraction of the robot's weight, falling linearly "
+                        "to 0 at --assist-until (default 0: off; HoST's curriculum; evaluation never applies it)")
+    p.add_argument("--assist-until", type=float, default=None, metavar="STEPS",
+                   help="env steps at which the assist force reaches 0 (default: half the budget)")
     p.add_argument("--base-controller", default=None, metavar="POLICY",
                    help="train a residual over this policy's joint targets (e.g. scripted-humanoid)")
     p.add_argument("--motion-penalties", type=float, default=None, metavar="SCALE",
@@ -38,6 +43,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "default 0.1; with --resume: a new reward stage from the run's current step)")
     p.add_argument("--reward-weight", action="append", default=[], metavar="TERM=WEIGHT",
                    help="set one reward term's weight (repeatable; with --resume: part of a new reward stage)")
+    p.add_argument("--morphology-range", action="append", default=[], metavar="FIELD=LOW,HIGH",
+                   help="replace one row of the paper's morphology table, e.g. calf_width=0.016,0.040 [m] "
+                        "(repeatable; with --resume: part of a new stage, the robots are redrawn)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--checkpoint-every", type=int, default=20, help="iterations between checkpoints")
     p.add_argument("--out", type=Path, default=None, help="run folder (default runs/<method>)")
@@ -71,6 +79,29 @@ def reward_weight_changes(motion_penalties: float | None, assignments: list[str]
     return weights
 
 
+def morphology_range_changes(assignments: list[str]) -> dict[str, tuple[float, float]]:
+    """Field → (low, high) from ``--morphology-range FIELD=LOW,HIGH`` (validated)."""
+    from frbench.errors import FrbenchError
+    from frbench.robots.morphology import morphology_ranges
+
+    ranges = {}
+    for item in assignments:
+        name, sep, value = item.partition("=")
+        parts = value.split(",")
+        try:
+            if not sep or len(parts) != 2:
+                raise ValueError
+            ranges[name.strip()] = (float(parts[0]), float(parts[1]))
+        except ValueError:
+            raise FrbenchError(f"--morphology-range {item!r}: expected FIELD=LOW,HIGH, "
+                               "e.g. calf_width=0.016,0.040") from None
+    try:
+        morphology_ranges(ranges)
+    except ValueError as exc:
+        raise FrbenchError(f"--morphology-range: {exc}") from None
+    return ranges
+
+
 def run(args) -> int:
     """Create (or resume) the run and train it to its budget."""
     from frbench.errors import FrbenchError
@@ -82,9 +113,11 @@ def run(args) -> int:
 
     command = "frbench " + " ".join(shlex.quote(a) for a in sys.argv[1:])
     weights = reward_weight_changes(args.motion_penalties, args.reward_weight)
+    ranges = morphology_range_changes(args.morphology_range)
     if args.resume:
         run_ = TrainingRun(args.resume, total_steps=int(args.steps) if args.steps else None, resume=True,
-                           checkpoint_every=args.checkpoint_every, command=command, reward_stage=weights)
+                           checkpoint_every=args.checkpoint_every, command=command, reward_stage=weights,
+                           morphology_stage=ranges)
     else:
         from frbench.training.run import ADAPTATION_METHOD
 
@@ -103,6 +136,8 @@ def run(args) -> int:
             raise FrbenchError("--steps and --envs must be positive")
         if not 0.0 <= args.demo_starts <= 1.0:
             raise FrbenchError(f"--demo-starts {args.demo_starts}: expected a fraction in [0, 1]")
+        if not 0.0 <= args.assist_force <= 2.0:
+            raise FrbenchError(f"--assist-force {args.assist_force}: expected a fraction of the weight in [0, 2]")
         if args.action_scale is not None and args.action_scale <= 0:
             raise FrbenchError(f"--action-scale {args.action_scale}: expected a positive number")
         reward = training_reward_config()
@@ -119,8 +154,10 @@ def run(args) -> int:
         env_cfg = TrainEnvConfig(
             num_envs=args.envs, backend=args.backend, robot=args.robots, num_morphologies=args.morphologies,
             episode_steps=args.episode_steps, families=families, curriculum=not args.no_curriculum,
-            reward=reward, seed=args.seed, demo_start_fraction=args.demo_starts, base_controller=args.base_controller,
+            reward=reward, morphology_ranges=ranges, seed=args.seed, demo_start_fraction=args.demo_starts, base_controller=args.base_controller,
             demo_start_until=args.demo_until if args.demo_until is not None else args.steps / 2,
+            assist_force=args.assist_force,
+            assist_until=args.assist_until if args.assist_until is not None else args.steps / 2,
             **({"action_scale": args.action_scale} if args.action_scale is not None else {}),
         )
         out = args.out or Path("runs") / args.method

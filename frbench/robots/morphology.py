@@ -87,6 +87,7 @@ __all__ = [
     "default_pose",
     "hip_position",
     "joint_limits",
+    "morphology_ranges",
     "nominal_height",
     "sample",
     "spec_from_params",
@@ -316,12 +317,37 @@ def validate(params: MorphologyParams) -> None:
 # --------------------------------------------------------------------------- sampling
 
 
-def sample(rng: np.random.Generator, base: MorphologyParams | None = None) -> MorphologyParams:
+def morphology_ranges(overrides: dict | None = None) -> dict[str, tuple[float, float]]:
+    """:data:`MORPHOLOGY_RANGES` with some rows replaced, field name → (low, high) [kg or m].
+
+    Raises:
+        ValueError: naming the field when it is not a randomised field, or when its range is not two finite
+            numbers 0 < low <= high.
+    """
+    ranges = dict(MORPHOLOGY_RANGES)
+    for name, value in (overrides or {}).items():
+        if name not in MORPHOLOGY_RANGES:
+            raise ValueError(f"morphology range {name!r}: not a randomised field; expected one of "
+                             f"{', '.join(MORPHOLOGY_RANGES)}")
+        try:
+            low, high = (float(v) for v in value)
+        except (TypeError, ValueError):
+            raise ValueError(f"morphology range {name}={value!r}: expected two numbers (low, high)") from None
+        if not (math.isfinite(low) and math.isfinite(high) and 0.0 < low <= high):
+            raise ValueError(f"morphology range {name}=({low}, {high}): expected finite 0 < low <= high")
+        ranges[name] = (low, high)
+    return ranges
+
+
+def sample(rng: np.random.Generator, base: MorphologyParams | None = None,
+           ranges: dict | None = None) -> MorphologyParams:
     """Draw a morphology uniformly from :data:`MORPHOLOGY_RANGES`.
 
     Args:
         rng: the random generator (explicit; the same seed gives the same params).
         base: supplies every non-randomised field; default ``MorphologyParams()``.
+        ranges: replacements for some rows of :data:`MORPHOLOGY_RANGES` (see :func:`morphology_ranges`);
+            the draw order, and so the stream of random numbers, is unchanged.
 
     Returns:
         ``base`` with the 14 randomised fields drawn uniformly in [low, high).
@@ -332,9 +358,10 @@ def sample(rng: np.random.Generator, base: MorphologyParams | None = None) -> Mo
         raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
     base = MorphologyParams() if base is None else base
     validate(base)
-    low, high = np.array(list(MORPHOLOGY_RANGES.values()), dtype=float).T
+    table = morphology_ranges(ranges)
+    low, high = np.array(list(table.values()), dtype=float).T
     draws = rng.uniform(low, high)
-    values = {name: float(v) for name, v in zip(MORPHOLOGY_RANGES, draws)}
+    values = {name: float(v) for name, v in zip(table, draws)}
     reset = dict.fromkeys(_OPTIONAL_POSITIVE_FIELDS + _INERTIA_FIELDS)
     return dataclasses.replace(base, **values, **reset)
 

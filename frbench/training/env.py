@@ -133,6 +133,9 @@ LEG_JOINT_WORDS = ("hip", "knee", "ankle")
 
 #: Gain ranges of frbench's training (the paper: Kp [20, 80], Kd [0.6, 2.0]); see docs/training.md.
 TRAINING_GAIN_RANGES = {"kp": (50.0, 80.0), "kd": (1.0, 2.0)}
+
+#: Standard gravity [m/s²] (both backends simulate g = 9.81 downwards).
+GRAVITY = 9.81
 GAIN_RANGE_REASON = (
     "robots sampled from the paper's morphology table weigh 21-35 kg (6 of 6 in a check); with Kp 20 every one "
     "sinks 40-65 % below its standing height and touches the ground with its body, with Kp 80 every one stands, "
@@ -156,6 +159,9 @@ class TrainEnvConfig:
     start_level: int = 1
     randomize: bool = True
     gain_ranges: dict = field(default_factory=lambda: dict(TRAINING_GAIN_RANGES))
+    #: Rows of the paper's morphology table replaced for this run, field → (low, high) [kg or m]
+    #: (``morphology.morphology_ranges``); empty: the paper's table.
+    morphology_ranges: dict = field(default_factory=dict)
     reward: RewardConfig = field(default_factory=training_reward_config)
     history: int = 5
     #: Frames of the ``long_history`` group (RMA's adaptation module reads 50); 0: no such group.
@@ -169,6 +175,10 @@ class TrainEnvConfig:
     demo_refresh_episodes: int = 10
     demo_steps: int = 300
     demo_stride: int = 5
+    #: A vertical assist force on the base, as a fraction of the robot's weight, falling linearly to 0 at
+    #: ``assist_until`` env steps (0: off); HoST's way of making getting up cheap to learn. Never in evaluation.
+    assist_force: float = 0.0
+    assist_until: float = 0.0
     #: A policy name (e.g. ``"scripted-humanoid"``) whose joint targets the learned action is added to:
     #: q* = base(o) + action_scale·a (a residual policy); None: q* = q̊ + action_scale·a.
     base_controller: str | None = None
@@ -250,18 +260,20 @@ class RecoveryTrainingEnv(VecEnv):
 
     def _feasible_morphologies(self) -> list:
         """``num_morphologies`` sampled robots (CoM shift applied when randomising) that can stand at the lowest
-        training gains (`feasibility.can_stand`); the others are redrawn and counted in ``self.rejected``."""
+        training gains (`feasibility.can_stand`); the others are redrawn and counted in ``self.rejected``.
+        Their parameters are kept in ``self.morphologies``."""
         cfg = self.cfg_obj
         kp, kd = cfg.gain_ranges.get("kp", CONTROL_RANGES["kp"])[0], cfg.gain_ranges.get("kd", CONTROL_RANGES["kd"])[0]
-        specs, self.rejected = [], 0
+        specs, self.morphologies, self.rejected = [], [], 0
         while len(specs) < cfg.num_morphologies:
-            morphology = sample_morphologies(1, self.rng)[0]
+            morphology = sample_morphologies(1, self.rng, ranges=cfg.morphology_ranges)[0]
             if cfg.randomize:  # the paper's CoM shift, baked into the morphology's trunk inertial
                 shift = self.rng.uniform(*CONTROL_RANGES["com_shift"], size=3)
                 morphology = dataclasses.replace(morphology, trunk_com_shift=tuple(map(float, shift)))
             spec = morphology_spec(morphology, f"morph{len(specs):04d}")
             if can_stand(spec, kp, kd):
                 specs.append(spec)
+                self.morphologies.append(morphology)
             else:
                 self.rejected += 1
             if self.rejected > 20 * cfg.num_morphologies:
@@ -343,10 +355,12 @@ class RecoveryTrainingEnv(VecEnv):
         soft = PhysicsParams(self.params.kp * 0.3, self.params.kd * 0.3, self.params.motor_strength,
                              self.params.friction, self.params.payload)
         self.backend.set_params(soft)
+        self.backend.set_base_force(np.zeros((n, 3)))
         self.backend.reset(np.arange(n), RobotState.at_rest(pos, quat, q))
         for _ in range(cfg.settle_steps):
             self.backend.step(q)
         self.backend.set_params(self.params)
+        self._set_assist()
         self.state = self.backend.state()
         self.contacts = self.backend.contacts()
         self.init_xy = self.state.base_pos[:, :2].copy()
@@ -481,12 +495,21 @@ class RecoveryTrainingEnv(VecEnv):
         extras = {"time_outs": torch.full((n,), bool(done)), "log": log}
         return obs, torch.as_tensor(reward, dtype=torch.float32), dones, extras
 
+    def _set_assist(self) -> None:
+        """The episode's vertical assist force (`TrainEnvConfig.assist_force`): fraction × weight [N] upwards."""
+        self.assist_fraction = assist_probability(self.cfg_obj.assist_force, self.cfg_obj.assist_until, self.env_steps)
+        force = np.zeros((self.num_envs, 3))
+        force[:, 2] = self.assist_fraction * self.env_masses.sum(axis=1) * GRAVITY
+        self.backend.set_base_force(force)
+
     def _episode_stats(self, success: np.ndarray, alive: np.ndarray) -> dict[str, float]:
         """Success rate of the episodes from fallen starts, overall and per family (all levels); the
         diverged fraction; with demo starts, their share and their success rate."""
         fallen = ~self.from_demo
         stats = {"success_all": float(success[fallen].mean()) if fallen.any() else 0.0,
                  "diverged": float((~alive).mean()), "mean_level": float(self.curriculum.level.mean())}
+        if self.cfg_obj.assist_force > 0.0:
+            stats["assist_fraction"] = float(self.assist_fraction)
         if self.from_demo.any():
             stats["demo_start_share"] = float(self.from_demo.mean())
             stats["success_demo_starts"] = float(success[self.from_demo].mean())

@@ -177,15 +177,17 @@ def sample_extra(
 # --------------------------------------------------------------------------- morphologies
 
 
-def sample_morphologies(count: int, rng: np.random.Generator, base: MorphologyParams | None = None) -> list[MorphologyParams]:
+def sample_morphologies(count: int, rng: np.random.Generator, base: MorphologyParams | None = None,
+                        ranges: dict | None = None) -> list[MorphologyParams]:
     """``count`` morphologies drawn uniformly from ``morphology.MORPHOLOGY_RANGES``.
 
     ``base`` supplies the non-randomised fields (limits, torques, standing pose,
-    gains); default ``MorphologyParams()`` (Go2-like).
+    gains); default ``MorphologyParams()`` (Go2-like). ``ranges`` replaces some
+    rows of the table (``morphology.morphology_ranges``).
     """
     if count < 0:
         raise ValueError(f"count must be >= 0, got {count}")
-    return [morphology.sample(rng, base) for _ in range(count)]
+    return [morphology.sample(rng, base, ranges) for _ in range(count)]
 
 
 def params_hash(params: MorphologyParams) -> str:

@@ -68,6 +68,7 @@ def env_cfg_from_dict(data: dict):
     reward = data.pop("reward")
     data["families"] = tuple(data["families"])
     data["gain_ranges"] = {k: tuple(v) for k, v in data.get("gain_ranges", {}).items()}
+    data["morphology_ranges"] = {k: tuple(v) for k, v in data.get("morphology_ranges", {}).items()}
     return TrainEnvConfig(**data, reward=RewardConfig(**reward))
 
 
@@ -93,12 +94,34 @@ def _adaptation_setup(teacher: Path | None):
     return env_cfg, train_cfg
 
 
+def estimator_sized_for(train_cfg: dict, num_masses: int, num_contacts: int, nominal_masses) -> dict:
+    """``train_cfg`` with the estimator's mass and contact heads sized for a robot whose labels have
+    ``num_masses`` mass groups and ``num_contacts`` contact groups (unchanged when they already match).
+
+    A new mass width gets divisors of one nominal group mass [kg] rounded up to 5 kg (the paper's
+    15/5/5/5 kg for the quadruped's trunk/legs play the same role)."""
+    estimator = train_cfg.get("actor", {}).get("estimator")
+    if not estimator:
+        return train_cfg
+    changes = {}
+    if estimator.get("num_masses", 4) != num_masses:
+        changes["num_masses"] = int(num_masses)
+        changes["mass_scale"] = [float(5.0 * max(1, math.ceil(m / 5.0))) for m in nominal_masses]
+    if estimator.get("num_contacts", 13) != num_contacts:
+        changes["num_contacts"] = int(num_contacts)
+    if not changes:
+        return train_cfg
+    out = json.loads(json.dumps(train_cfg))
+    out["actor"]["estimator"].update(changes)
+    return out
+
+
 class TrainingRun:
     """Create or resume a run and train it to its step budget."""
 
     def __init__(self, out: Path, method: str | None = None, env_cfg=None, total_steps: int | None = None,
                  checkpoint_every: int = 20, command: str = "", resume: bool = False, teacher: Path | None = None,
-                 reward_stage: dict[str, float] | None = None):
+                 reward_stage: dict[str, float] | None = None, morphology_stage: dict | None = None):
         """``method="rma-adaptation"`` is RMA's phase 2: ``teacher`` is a finished ``rma`` run folder whose
         policy is frozen while the adaptation module learns; its env config is reused (with a 50-frame
         long history), ``env_cfg`` is ignored.
@@ -106,7 +129,8 @@ class TrainingRun:
         ``reward_stage`` (with ``resume``), reward term → new weight, starts a new reward stage from the run's
         current env step (e.g. the motion penalties at the paper's weights once the policy gets up). The
         changes and ``command`` are appended to ``config["stages"]``, so the checkpoint says which reward
-        trained which steps."""
+        trained which steps. ``morphology_stage`` (with ``resume``), field → (low, high), likewise replaces rows
+        of the morphology table: the run's robots are redrawn from the new table."""
         import torch
 
         from frbench.training.env import RecoveryTrainingEnv
@@ -122,8 +146,8 @@ class TrainingRun:
             method, env_cfg = config["method"], env_cfg_from_dict(config["env"])
             total_steps = total_steps or config["total_steps"]
             train_cfg = config["train_cfg"]
-            if reward_stage:
-                env_cfg = self._new_reward_stage(config, env_cfg, reward_stage, command)
+            if reward_stage or morphology_stage:
+                env_cfg = self._new_stage(config, env_cfg, reward_stage or {}, morphology_stage or {}, command)
         else:
             if (self.out / CONFIG_FILE).exists():
                 raise FrbenchError(f"--out {self.out}: a run is already there; use --resume {self.out} or another name")
@@ -141,6 +165,11 @@ class TrainingRun:
         self.checkpoint_every = checkpoint_every
         torch.manual_seed(env_cfg.seed)
         self.env = RecoveryTrainingEnv(env_cfg)
+        sized = estimator_sized_for(train_cfg, self.env.env_masses.shape[1], len(self.env.spec.contact_groups),
+                                    self.env.env_masses[0])
+        if sized != train_cfg:  # e.g. the G1: 3 mass groups and 10 contact groups instead of 4 and 13
+            train_cfg = config["train_cfg"] = sized
+            atomic_write_text(self.out / CONFIG_FILE, json.dumps(config, indent=1) + "\n")
         from rsl_rl.runners import OnPolicyRunner
 
         self.runner = OnPolicyRunner(self.env, json.loads(json.dumps(train_cfg)), log_dir=str(self.out), device="cpu")
@@ -153,22 +182,28 @@ class TrainingRun:
             self.runner.load(str(Path(config["teacher"]) / RUNNER_FILE))  # π, μ and normalisers, then frozen
 
     # ------------------------------------------------------------------ persistence
-    def _new_reward_stage(self, config: dict, env_cfg, weights: dict[str, float], command: str):
-        """The env config with the reward ``weights`` changed; records the stage in ``config`` and rewrites
-        config.json (see ``__init__``)."""
+    def _new_stage(self, config: dict, env_cfg, weights: dict[str, float], morphology: dict, command: str):
+        """The env config with the reward ``weights`` and ``morphology`` ranges changed; records the stage in
+        ``config`` and rewrites config.json (see ``__init__``)."""
         import torch
 
+        from frbench.robots.morphology import morphology_ranges
         from frbench.training.rewards import check_weights
 
         check_weights(weights)
+        morphology_ranges(morphology)  # validates names and values before anything is written
         state_path = self.out / STATE_FILE
         steps = int(torch.load(state_path, weights_only=False)["env_steps"]) if state_path.is_file() else 0
         reward = env_cfg.reward
         for term, weight in weights.items():
             reward = reward.with_weight(term, weight, f"reward stage from {steps} env steps ({command or 'resume'})")
-        env_cfg = dataclasses.replace(env_cfg, reward=reward)
+        ranges = {**env_cfg.morphology_ranges, **{k: tuple(map(float, v)) for k, v in morphology.items()}}
+        env_cfg = dataclasses.replace(env_cfg, reward=reward, morphology_ranges=ranges)
         config["env"] = _env_cfg_to_dict(env_cfg)
-        config.setdefault("stages", []).append({"from_env_steps": steps, "weights": dict(weights), "command": command})
+        stage = {"from_env_steps": steps, "weights": dict(weights), "command": command}
+        if morphology:
+            stage["morphology_ranges"] = {k: list(map(float, v)) for k, v in morphology.items()}
+        config.setdefault("stages", []).append(stage)
         atomic_write_text(self.out / CONFIG_FILE, json.dumps(config, indent=1) + "\n")
         return env_cfg
 
