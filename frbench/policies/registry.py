@@ -44,10 +44,10 @@ def policy_names() -> list[str]:
     return [*builtin, *(n for n in plugin_policies() if n not in builtin)]
 
 
-#: The methods of the equal-budget comparison (3.07 M env steps each; checkpoints/budget3m/README.md). RMA is
-#: not among them yet: its phase 1 was stopped at 0.25 M steps (docs/results.md).
+#: The methods of the equal-budget comparison (3.07 M env steps each; RMA's adaptation module then 0.5 M more with
+#: its phase-1 policy frozen; checkpoints/budget3m/README.md).
 BUDGET_3M_POLICIES = ("frnet-3m", "frnet-no-mass-3m", "frnet-no-contact-3m", "frnet-no-est-3m", "dreamriser-3m",
-                      "ppo-3m", "frnet-no-stability-3m")
+                      "rma-adaptation-3m", "ppo-3m", "frnet-no-stability-3m")
 
 #: Trained policies shipped with frbench: name → checkpoint file inside the package.
 SHIPPED_CHECKPOINTS = {"frnet": "checkpoints/frnet.pt",
