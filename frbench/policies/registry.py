@@ -24,6 +24,7 @@ BUILTIN_POLICIES = {
     "zero": "frbench.policies.zero:ZeroPolicy",
     "scripted": "frbench.policies.scripted:ScriptedPolicy",
     "scripted-humanoid": "frbench.policies.scripted_humanoid:HumanoidScriptedPolicy",
+    "keyframe-humanoid": "frbench.policies.keyframe_humanoid:KeyframeHumanoidPolicy",
 }
 
 

@@ -1,0 +1,269 @@
+"""Black-box search of the ``keyframe-humanoid`` parameters in MuJoCo (CMA-ES, optional extra ``tune``).
+
+Every generation runs ``popsize × len(starts)`` real recovery episodes side by
+side in one batched MuJoCo `RecoveryTask` (one candidate per simulation, the
+task's own drawn starts, its settle, its success test), scores each candidate
+by `episode_scores` averaged over its starts, and writes the best parameters
+found so far to ``--out`` (JSON, the same format as the shipped
+``keyframe_humanoid_params.json``) after every generation. ``--stage rise``
+tunes only the ``CROUCH``/``RISE``/feedback parameters from recorded states
+(``--states``: an ``.npz`` of `RobotState` fields, e.g. squats spawned and
+settled at full gains). The last run behind the shipped parameters:
+
+    .venv/bin/python -m frbench.policies.keyframe_search --starts 0:4,1:0,2:8,3:3 \
+        --init full3.json --popsize 12 --sigma 0.4 --generations 400 --max-minutes 17 --seed 8 \
+        --out keyframe_humanoid_params.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shlex
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from frbench.policies.keyframe_humanoid import (
+    INITIAL,
+    PARAMETER_NAMES,
+    SCALE,
+    KeyframeHumanoidPolicy,
+    decode,
+)
+from frbench.tasks.initial_states import FallenStarts, draw_starts
+from frbench.tasks.recovery import EPISODE_STEPS, RecoveryTask
+
+
+def parse_starts(text: str) -> list[tuple[int, int]]:
+    """``"seed:episode,seed:episode"`` → [(seed, episode), …] of g1/flat/level-1 starts."""
+    return [tuple(int(v) for v in item.split(":")) for item in text.split(",") if item]
+
+
+#: Projected gravity z below this counts as upright for the score.
+UPRIGHT_GZ = -0.5
+#: Control steps the pelvis must then stay up until the episode ends (0.5 s) for an up to count.
+MIN_UP_STEPS = 25
+#: Pelvis heights above this [m] mean the robot jumped (flight): penalised by `JUMP_PENALTY` per metre.
+JUMP_HEIGHT = 0.85
+JUMP_PENALTY = 60.0
+
+
+def episode_scores(heights: np.ndarray, gravity_z: np.ndarray, success: np.ndarray, up: float, floor: float) -> np.ndarray:
+    """Shaped score per episode (higher is better) from pelvis heights (T, N) above the ground and the projected
+    gravity z (T, N) (−1 upright; the pelvis counts as upright below `UPRIGHT_GZ`).
+
+    The task's humanoid test reads the pelvis height only, which a head or hand stand (pelvis upside down,
+    0.53-0.8 m) also passes; the score counts a step as up only with the pelvis upright. Up: the first step the
+    pelvis is upright above ``up``, at least `MIN_UP_STEPS` before the end (so that a tumble that happens to be
+    upright in the last steps does not count). 100 if the task's ``success`` holds and the pelvis stays upright above
+    ``floor`` from up to the end; + 20 once up plus 30 × the fraction of the remaining episode it then stayed
+    upright above ``floor``; + 10 × the highest height × max(−g_z, 0) / ``up`` (capped at 1); + 5 × the fraction of
+    steps upright above ``floor``; − `JUMP_PENALTY` × the max height above `JUMP_HEIGHT` (a get-up by jumping
+    and landing is fragile).
+    """
+    steps, n = heights.shape
+    upright = gravity_z < UPRIGHT_GZ
+    good = (heights > floor) & upright
+    top_upright = (heights * np.clip(-gravity_z, 0.0, 1.0)).max(axis=0)
+    score = 10.0 * np.minimum(top_upright / up, 1.0) + 5.0 * good.mean(axis=0)
+    score -= JUMP_PENALTY * np.maximum(heights.max(axis=0) - JUMP_HEIGHT, 0.0)
+    for i in range(n):
+        ups = np.flatnonzero((heights[:steps - MIN_UP_STEPS, i] > up) & upright[:steps - MIN_UP_STEPS, i])
+        if not ups.size:
+            continue
+        after = good[ups[0]:, i]
+        stayed = np.argmin(after) if not after.all() else len(after)
+        score[i] += 20.0 + 30.0 * stayed / len(after) + (100.0 if success[i] and after.all() else 0.0)
+    return score
+
+
+def upright_success(heights: np.ndarray, gravity_z: np.ndarray, success: np.ndarray, up: float, floor: float):
+    """(N,) the task's success with the pelvis upright from the first upright step above ``up`` (at least
+    `MIN_UP_STEPS` before the end) to the end."""
+    upright = gravity_z < UPRIGHT_GZ
+    out = np.zeros(heights.shape[1], dtype=bool)
+    last = heights.shape[0] - MIN_UP_STEPS
+    for i in np.flatnonzero(success):
+        ups = np.flatnonzero((heights[:last, i] > up) & upright[:last, i])
+        out[i] = bool(ups.size) and bool(((heights[ups[0]:, i] > floor) & upright[ups[0]:, i]).all())
+    return out
+
+
+class Evaluator:
+    """Runs candidates from fixed g1/flat/level-1 starts in one batched MuJoCo task."""
+
+    def __init__(self, starts: list[tuple[int, int]], popsize: int, backend: str = "mujoco"):
+        from frbench.robots import get_robot
+        from frbench.terrains import make_terrain
+
+        self.spec = get_robot("g1")
+        self.popsize, self.n_starts = popsize, len(starts)
+        drawn = [draw_starts(self.spec, make_terrain("flat", 1, s), "flat", 1, s, [e]) for s, e in starts]
+        self.kinds = [d.kinds[0] for d in drawn]
+        # environment j = candidate (j // n_starts), start (j % n_starts)
+        self.starts = FallenStarts(
+            base_pos=np.tile(np.concatenate([d.base_pos for d in drawn]), (popsize, 1)),
+            base_quat=np.tile(np.concatenate([d.base_quat for d in drawn]), (popsize, 1)),
+            q=np.tile(np.concatenate([d.q for d in drawn]), (popsize, 1)),
+            kinds=self.kinds * popsize,
+        )
+        self.task = RecoveryTask(self.spec, backend, make_terrain("flat", 1, starts[0][0]), popsize * len(starts))
+
+    def run(self, parameters: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(scores (popsize,), successes (popsize, n_starts), max heights (popsize, n_starts)) of candidate
+        parameter rows (popsize, D)."""
+        rows = np.repeat(np.asarray(parameters, dtype=float), self.n_starts, axis=0)
+        policy = KeyframeHumanoidPolicy(rows)
+        obs = self.task.reset(self.starts)
+        policy.reset(self.spec, len(rows))
+        return _scored_rollout(self.task, policy, obs, EPISODE_STEPS, (self.popsize, self.n_starts))
+
+    def close(self) -> None:
+        self.task.close()
+
+
+def _scored_rollout(task, policy, obs: dict, steps: int, shape: tuple[int, int]):
+    """Run ``policy`` for ``steps`` control steps of ``task`` from ``obs``; (mean score per candidate
+    (popsize,), upright successes and max pelvis heights [m], both ``shape`` = (popsize, n_starts))."""
+    n = shape[0] * shape[1]
+    heights, gravity_z = np.empty((steps, n)), np.zeros((steps, n))
+    for t in range(steps):
+        obs = task.step(policy.act(obs))
+        heights[t], gravity_z[t] = task.signals.height, task.signals.gravity_z
+    tracker = task.success
+    args = (heights, gravity_z, tracker.success, tracker.up_height, tracker.floor_height)
+    scores, good = episode_scores(*args), upright_success(*args)
+    return scores.reshape(shape).mean(axis=1), good.reshape(shape), heights.max(axis=0).reshape(shape)
+
+
+#: Parameters tuned by ``--stage rise`` (the others stay at ``--init``).
+RISE_PARAMETERS = tuple(n for n in PARAMETER_NAMES
+                        if n.startswith(("crouch.", "stand.", "fb.")) or n in ("ramp.crouch", "ramp.rise"))
+
+
+class RiseEvaluator:
+    """Runs candidates from recorded mid-recovery states (a ``.npz`` of `RobotState` fields, e.g. folded on
+    hands and feet at the end of ``SQUAT``) with the controller entering ``CROUCH``: the rise alone, at full
+    gains and without the settle, for ``steps`` control steps, with the task's success test."""
+
+    def __init__(self, states_file: str, popsize: int, steps: int = 150, backend: str = "mujoco"):
+        from frbench.backends.base import PhysicsParams, RobotState
+        from frbench.robots import get_robot
+        from frbench.terrains import make_terrain
+
+        self.spec = get_robot("g1")
+        data = np.load(states_file)
+        self.popsize, self.n_starts, self.steps = popsize, len(data["q"]), steps
+        n = popsize * self.n_starts
+        self.state = RobotState(**{k: np.tile(data[k], (popsize, 1)) for k in
+                                   ("base_pos", "base_quat", "base_linvel", "base_angvel", "q", "qd")})
+        self.task = RecoveryTask(self.spec, backend, make_terrain("flat", 1, 0), n)
+        self.nominal = PhysicsParams.nominal(self.spec, n)
+        self.kinds = ["recorded"] * self.n_starts
+
+    def run(self, parameters: np.ndarray):
+        from frbench.policies.scripted_humanoid import CROUCH
+        from frbench.tasks.success import SuccessTracker
+
+        task, n = self.task, self.popsize * self.n_starts
+        rows = np.repeat(np.asarray(parameters, dtype=float), self.n_starts, axis=0)
+        task.backend.set_params(self.nominal)
+        task.backend.reset(np.arange(n), self.state)
+        task.state = task.backend.state()
+        task.start_xy = task.state.base_pos[:, :2].copy()
+        task.previous_action = task.state.q.copy()
+        task.settle_diverged = np.zeros(n, dtype=bool)
+        task.success = SuccessTracker(n, "humanoid", self.spec.nominal_height)
+        from frbench.tasks.success import EpisodeMetrics
+
+        task.metrics = EpisodeMetrics(n, self.spec.n_joints)
+        obs = task.observation()
+        policy = KeyframeHumanoidPolicy(rows)
+        policy.reset(self.spec, n)
+        policy.target = policy._clip(task.state.q.copy())
+        policy.start = policy.target.copy()
+        for i in range(n):
+            policy._enter(i, CROUCH)
+        return _scored_rollout(task, policy, obs, self.steps, (self.popsize, self.n_starts))
+
+    def close(self) -> None:
+        self.task.close()
+
+
+def save(path: Path, parameters: np.ndarray, info: dict) -> None:
+    """Write parameters (D,) by name plus ``info`` to ``path`` as JSON (atomically)."""
+    from frbench.io import atomic_write_text
+
+    data = {**info, "parameters": {n: round(float(v), 6) for n, v in zip(PARAMETER_NAMES, parameters)}}
+    atomic_write_text(path, json.dumps(data, indent=1) + "\n")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--starts", default="0:4,1:16,2:8,3:3", help="seed:episode of g1/flat/level-1 starts")
+    parser.add_argument("--popsize", type=int, default=12)
+    parser.add_argument("--generations", type=int, default=150)
+    parser.add_argument("--sigma", type=float, default=0.5, help="initial step size in normalised coordinates")
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--init", default=None, help="start from the parameters of this JSON file")
+    parser.add_argument("--out", required=True)
+    parser.add_argument("--max-minutes", type=float, default=60.0)
+    parser.add_argument("--stage", choices=("full", "rise"), default="full",
+                        help="full: whole episodes from --starts; rise: only the rise from --states")
+    parser.add_argument("--states", default=None, help="rise stage: .npz of recorded states")
+    parser.add_argument("--steps", type=int, default=150, help="rise stage: control steps per episode")
+    args = parser.parse_args(argv)
+    import cma
+
+    command = "python -m frbench.policies.keyframe_search " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
+    out = Path(args.out)
+    starts = parse_starts(args.starts)
+    base = INITIAL.copy()
+    if args.init:
+        from frbench.policies.keyframe_humanoid import load_parameters
+
+        base = load_parameters(args.init)
+    tuned = np.arange(len(INITIAL))
+    if args.stage == "rise":
+        tuned = np.array([PARAMETER_NAMES.index(n) for n in RISE_PARAMETERS])
+        evaluator = RiseEvaluator(args.states, args.popsize, args.steps)
+    else:
+        evaluator = Evaluator(starts, args.popsize)
+    x0 = ((base - INITIAL) / SCALE)[tuned]
+
+    def full(xs: np.ndarray) -> np.ndarray:
+        out = np.tile((base - INITIAL) / SCALE, (len(xs), 1))
+        out[:, tuned] = xs
+        return decode(out)
+
+    print("starts", starts, evaluator.kinds, flush=True)
+    es = cma.CMAEvolutionStrategy(x0, args.sigma, {"popsize": args.popsize, "seed": args.seed, "verbose": -9})
+    best = (-np.inf, None, None)
+    began = time.time()
+    try:
+        for generation in range(args.generations):
+            xs = es.ask()
+            params = full(np.array(xs))
+            scores, successes, heights = evaluator.run(params)
+            es.tell(xs, (-scores).tolist())
+            k = int(np.argmax(scores))
+            if scores[k] > best[0]:
+                best = (float(scores[k]), params[k], {"successes": successes[k].tolist(),
+                                                      "max_heights": np.round(heights[k], 3).tolist()})
+                save(out, best[1], {"command": command, "score": best[0], "generation": generation,
+                                    "starts": [list(s) for s in starts], **best[2]})
+            print(f"gen {generation:3d} {time.time() - began:6.0f}s best {scores[k]:7.2f} mean {scores.mean():7.2f} "
+                  f"succ {int(successes.sum()):2d} hmax {heights.max():.3f} | overall {best[0]:.2f} {best[2]}",
+                  flush=True)
+            if (time.time() - began) / 60 > args.max_minutes:
+                break
+    finally:
+        evaluator.close()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,83 @@
+"""The ``keyframe-humanoid`` controller: its shipped parameters, its actions, one real prone episode (slow)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from frbench.policies.keyframe_humanoid import (
+    INITIAL,
+    LOWER,
+    PARAMETER_NAMES,
+    PARAMS_FILE,
+    UPPER,
+    KeyframeHumanoidPolicy,
+    decode,
+    load_parameters,
+)
+from frbench.policies.keyframe_search import episode_scores, upright_success
+from frbench.policies.registry import load_policy
+from frbench.robots import get_robot
+from tests.test_scripted import _obs
+
+
+def test_parameter_file_loads_and_is_within_bounds():
+    params = load_parameters()
+    assert params.shape == (len(PARAMETER_NAMES),) and np.isfinite(params).all()
+    assert (params >= LOWER).all() and (params <= UPPER).all()
+    assert np.allclose(decode(np.zeros_like(INITIAL)), INITIAL)
+    assert "command" in json.loads(PARAMS_FILE.read_text())
+
+
+def test_registered_and_acts_within_the_joint_limits():
+    spec = get_robot("g1")
+    lower, upper = np.asarray(spec.joint_lower), np.asarray(spec.joint_upper)
+    policy = load_policy("keyframe-humanoid")
+    assert isinstance(policy, KeyframeHumanoidPolicy) and policy.supports(spec)
+    assert not policy.supports(get_robot("go2"))
+    gravity = [(1.0, 0.0, 0.0), (-1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, -1.0)]
+    policy.reset(spec, len(gravity))
+    q = np.tile(spec.default_pose, (len(gravity), 1))
+    visited = set()
+    for _ in range(250):
+        targets = policy.act(_obs(spec, gravity, q=q))
+        assert targets.shape == (len(gravity), spec.n_joints) and np.isfinite(targets).all()
+        assert (targets >= lower - 1e-9).all() and (targets <= upper + 1e-9).all()
+        q = targets
+        visited.update(policy.phase.tolist())
+    assert len(visited) > 4  # the prone environment goes through the key frames
+
+
+def test_one_parameter_row_per_environment():
+    spec = get_robot("g1")
+    rows = np.stack([INITIAL, decode(np.ones_like(INITIAL))])
+    policy = KeyframeHumanoidPolicy(rows)
+    policy.reset(spec, 2)
+    assert not np.allclose(policy.env_poses[max(policy.env_poses)][0], policy.env_poses[max(policy.env_poses)][1])
+
+
+def test_shaped_score_ranks_upright_success_first():
+    up, floor = 0.7, 0.5
+    t = np.arange(250)[:, None]
+    stays = np.where(t > 200, 0.75, 0.2)  # gets up late and stays
+    falls = np.where((t > 100) & (t < 120), 0.8, 0.2)  # gets up and falls
+    low = np.full((250, 1), 0.45)
+    heights = np.hstack([stays, falls, low, stays])
+    gravity_z = np.full_like(heights, -1.0)
+    gravity_z[:, 3] = 1.0  # the same heights upside down: a hand stand, not up
+    success = np.array([True, False, False, True])  # the task's height-only test
+    scores = episode_scores(heights, gravity_z, success, up, floor)
+    assert scores[0] > scores[1] > scores[2] and scores[0] > 100 > scores[3]
+    assert upright_success(heights, gravity_z, success, up, floor).tolist() == [True, False, False, False]
+
+
+@pytest.mark.slow
+def test_a_prone_start_gets_up_in_mujoco():
+    from frbench.evaluation.runner import Cell, run_cell
+
+    # seed 1, episode 0 of g1/flat/level 1 is a prone start (one of the starts of the evaluation grid)
+    (record,) = run_cell(Cell("g1", "mujoco", "flat", 1, 1, 1), "keyframe-humanoid")
+    assert record["initial_pose"] == "prone"
+    assert record["success"] and not record["diverged"]
