@@ -134,6 +134,9 @@ LEG_JOINT_WORDS = ("hip", "knee", "ankle")
 #: Gain ranges of frbench's training (the paper: Kp [20, 80], Kd [0.6, 2.0]); see docs/training.md.
 TRAINING_GAIN_RANGES = {"kp": (50.0, 80.0), "kd": (1.0, 2.0)}
 
+#: A humanoid's per-joint Kp and Kd are multiplied by one factor per episode drawn from this range.
+HUMANOID_GAIN_FACTORS = (0.9, 1.1)
+
 #: Standard gravity [m/s²] (both backends simulate g = 9.81 downwards).
 GRAVITY = 9.81
 GAIN_RANGE_REASON = (
@@ -347,7 +350,7 @@ class RecoveryTrainingEnv(VecEnv):
             dx, dy = self.grid.offsets[tile]
             pos[i], quat[i], q[i] = p + (dx, dy, 0.0), o, j
         if cfg.randomize:
-            self.params = sample_physics(self.spec, n, self.rng, ranges={**CONTROL_RANGES, **cfg.gain_ranges})
+            self.params = self._sample_physics(n)
             self.params.friction, self.params.payload = self.env_friction.copy(), self.env_payload.copy()
             self.params.motor_friction = self.rng.uniform(*CONTROL_RANGES["motor_friction"], size=(n, self.spec.n_joints))
         else:
@@ -494,6 +497,20 @@ class RecoveryTrainingEnv(VecEnv):
         dones = torch.full((n,), bool(done))
         extras = {"time_outs": torch.full((n,), bool(done)), "log": log}
         return obs, torch.as_tensor(reward, dtype=torch.float32), dones, extras
+
+    def _sample_physics(self, n: int) -> PhysicsParams:
+        """Gains, motor strength, friction and payload for ``n`` episodes. Quadrupeds draw one Kp and Kd for all
+        joints from the (absolute) training range; a humanoid's per-joint gains are scaled by one factor per
+        episode from `HUMANOID_GAIN_FACTORS` instead, since a single Kp of 50-80 N·m/rad would replace
+        the G1's 40-200 N·m/rad per joint (what sessions 2-4's first G1 runs trained on)."""
+        cfg = self.cfg_obj
+        ranges = {**CONTROL_RANGES, **cfg.gain_ranges}
+        if not self.humanoid:
+            return sample_physics(self.spec, n, self.rng, ranges=ranges)
+        params = sample_physics(self.spec, n, self.rng, ranges={k: v for k, v in ranges.items() if k not in ("kp", "kd")})
+        params.kp = params.kp * self.rng.uniform(*HUMANOID_GAIN_FACTORS, size=(n, 1))
+        params.kd = params.kd * self.rng.uniform(*HUMANOID_GAIN_FACTORS, size=(n, 1))
+        return params
 
     def _set_assist(self) -> None:
         """The episode's vertical assist force (`TrainEnvConfig.assist_force`): fraction × weight [N] upwards."""
