@@ -22,6 +22,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--terrains", default=None, help="comma-separated families (default: all seven)")
     p.add_argument("--morphologies", type=int, default=32, help="distinct sampled robots per batch")
     p.add_argument("--no-curriculum", action="store_true", help="uniform random levels instead of the curriculum")
+    p.add_argument("--no-randomize", action="store_true",
+                   help="nominal physics: no gain, motor, friction, payload or CoM randomisation (the evaluation's)")
     p.add_argument("--no-stability", action="store_true", help="drop the stability reward terms (ablation)")
     p.add_argument("--episode-steps", type=int, default=350, help="training episode length (paper: 350)")
     p.add_argument("--action-scale", type=float, default=None,
@@ -154,6 +156,7 @@ def run(args) -> int:
         env_cfg = TrainEnvConfig(
             num_envs=args.envs, backend=args.backend, robot=args.robots, num_morphologies=args.morphologies,
             episode_steps=args.episode_steps, families=families, curriculum=not args.no_curriculum,
+            randomize=not args.no_randomize,
             reward=reward, morphology_ranges=ranges, seed=args.seed, demo_start_fraction=args.demo_starts, base_controller=args.base_controller,
             demo_start_until=args.demo_until if args.demo_until is not None else args.steps / 2,
             assist_force=args.assist_force,
