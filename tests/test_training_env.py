@@ -309,10 +309,10 @@ def test_a_base_force_of_one_and_a_half_weights_lifts_the_robot_at_half_g(backen
         sim.close()
 
 
-def test_a_humanoid_keeps_its_per_joint_gains_scaled_by_one_factor_per_episode():
+def test_a_named_robot_keeps_its_per_joint_gains_scaled_by_one_factor_per_episode():
     from frbench.backends.base import PhysicsParams
     from frbench.robots import get_robot
-    from frbench.training.env import HUMANOID_GAIN_FACTORS, humanoid_reward_config
+    from frbench.training.env import NAMED_ROBOT_GAIN_FACTORS, humanoid_reward_config
 
     cfg = TrainEnvConfig(num_envs=4, episode_steps=3, settle_steps=2, robot="g1", families=("flat",),
                          reward=humanoid_reward_config())
@@ -322,4 +322,4 @@ def test_a_humanoid_keeps_its_per_joint_gains_scaled_by_one_factor_per_episode()
     for ours, theirs in ((env.params.kp, nominal.kp), (env.params.kd, nominal.kd)):
         factor = ours / theirs
         np.testing.assert_allclose(factor, factor[:, :1].repeat(factor.shape[1], axis=1), rtol=1e-12)
-        assert (factor >= HUMANOID_GAIN_FACTORS[0]).all() and (factor <= HUMANOID_GAIN_FACTORS[1]).all()
+        assert (factor >= NAMED_ROBOT_GAIN_FACTORS[0]).all() and (factor <= NAMED_ROBOT_GAIN_FACTORS[1]).all()

@@ -134,8 +134,8 @@ LEG_JOINT_WORDS = ("hip", "knee", "ankle")
 #: Gain ranges of frbench's training (the paper: Kp [20, 80], Kd [0.6, 2.0]); see docs/training.md.
 TRAINING_GAIN_RANGES = {"kp": (50.0, 80.0), "kd": (1.0, 2.0)}
 
-#: A humanoid's per-joint Kp and Kd are multiplied by one factor per episode drawn from this range.
-HUMANOID_GAIN_FACTORS = (0.9, 1.1)
+#: A named robot's own per-joint Kp and Kd are multiplied by one factor per episode drawn from this range.
+NAMED_ROBOT_GAIN_FACTORS = (0.9, 1.1)
 
 #: Standard gravity [m/s²] (both backends simulate g = 9.81 downwards).
 GRAVITY = 9.81
@@ -499,17 +499,17 @@ class RecoveryTrainingEnv(VecEnv):
         return obs, torch.as_tensor(reward, dtype=torch.float32), dones, extras
 
     def _sample_physics(self, n: int) -> PhysicsParams:
-        """Gains, motor strength, friction and payload for ``n`` episodes. Quadrupeds draw one Kp and Kd for all
-        joints from the (absolute) training range; a humanoid's per-joint gains are scaled by one factor per
-        episode from `HUMANOID_GAIN_FACTORS` instead, since a single Kp of 50-80 N·m/rad would replace
-        the G1's 40-200 N·m/rad per joint (what sessions 2-4's first G1 runs trained on)."""
+        """Gains, motor strength, friction and payload for ``n`` episodes. Sampled morphologies draw one Kp and
+        Kd for all joints from the training's absolute range (they have no gains of their own); a named robot
+        (``cfg.robot``) keeps its own per-joint gains, scaled by one factor per episode from
+        `NAMED_ROBOT_GAIN_FACTORS` — one Kp of 50-80 N·m/rad would replace the G1's 40-200 per joint."""
         cfg = self.cfg_obj
         ranges = {**CONTROL_RANGES, **cfg.gain_ranges}
-        if not self.humanoid:
+        if not cfg.robot:
             return sample_physics(self.spec, n, self.rng, ranges=ranges)
         params = sample_physics(self.spec, n, self.rng, ranges={k: v for k, v in ranges.items() if k not in ("kp", "kd")})
-        params.kp = params.kp * self.rng.uniform(*HUMANOID_GAIN_FACTORS, size=(n, 1))
-        params.kd = params.kd * self.rng.uniform(*HUMANOID_GAIN_FACTORS, size=(n, 1))
+        params.kp = params.kp * self.rng.uniform(*NAMED_ROBOT_GAIN_FACTORS, size=(n, 1))
+        params.kd = params.kd * self.rng.uniform(*NAMED_ROBOT_GAIN_FACTORS, size=(n, 1))
         return params
 
     def _set_assist(self) -> None:
