@@ -89,6 +89,7 @@ def phases(level: int, n: int = 64, steps: int = PHASE_STEPS) -> dict[str, dict[
 
     from frbench.backends.base import PhysicsParams, actuator_torque
     from frbench.backends.mujoco_model import build_model, joint_addresses
+    from frbench.tasks.protocol import CONTROL_DT
 
     library = ctypes.util.find_library("gomp")
     if library is None:
@@ -105,6 +106,7 @@ def phases(level: int, n: int = 64, steps: int = PHASE_STEPS) -> dict[str, dict[
             model = build_model(spec, terrain)
             data = mujoco.MjData(model)
             qadr, dadr = joint_addresses(model, spec)
+            substeps = round(CONTROL_DT / model.opt.timestep)
             start, targets = _starts(spec, terrain, n)
             seconds, counts, total = np.zeros(len(timers)), np.zeros(3), 0
             for i in range(n):
@@ -115,12 +117,12 @@ def phases(level: int, n: int = 64, steps: int = PHASE_STEPS) -> dict[str, dict[
                 mujoco.mj_forward(model, data)
                 for k in timers:
                     data.timer[k].duration = 0.0
-                for _ in range(steps * 4):  # 4 physics steps per control step, PD at each
+                for _ in range(steps * substeps):  # the backend's physics steps per control step, PD at each
                     q, qd = data.qpos[qadr][None], data.qvel[dadr][None]
                     data.ctrl[:] = actuator_torque(params, limits, targets[i : i + 1], q, qd, 0)
                     mujoco.mj_step(model, data)
                     counts += (data.ncon, data.nefc, data.solver_niter[0])
-                total += steps * 4
+                total += steps * substeps
                 seconds += [data.timer[k].duration for k in timers]
             row = {name: 1e6 * s / total for (name, _), s in zip(_PHASES, seconds)}
             row.update(zip(("contacts", "rows", "iterations"), counts / total))

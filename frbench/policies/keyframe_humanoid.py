@@ -51,13 +51,18 @@ import numpy as np
 
 from frbench.policies.scripted_humanoid import (
     CROUCH,
+    CROUCH_POSE,
     HOLD,
     LIE,
     LIFT,
+    LIFT_POSE,
     PIKE,
+    PIKE_POSE,
     PUSH_B,
+    PUSH_B_POSE,
     RISE,
     SQUAT,
+    SQUAT_POSE,
     HumanoidScriptedPolicy,
     _smoothstep,
 )
@@ -117,8 +122,10 @@ SCALE = np.array([p[2] for p in PARAMETERS], dtype=float)
 LOWER = np.array([p[3] for p in PARAMETERS], dtype=float)
 UPPER = np.array([p[4] for p in PARAMETERS], dtype=float)
 
-#: Joints each tuned phase keeps from the scripted controller's pose unless a parameter names them.
-_PHASE_OF = {"push_b": PUSH_B, "lift": LIFT, "pike": PIKE, "squat": SQUAT, "crouch": CROUCH}
+#: Parameter prefix → (phase, the scripted controller's key pose, whose joints it keeps unless a parameter
+#: names them).
+_TUNED_PHASES = {"push_b": (PUSH_B, PUSH_B_POSE), "lift": (LIFT, LIFT_POSE), "pike": (PIKE, PIKE_POSE),
+                 "squat": (SQUAT, SQUAT_POSE), "crouch": (CROUCH, CROUCH_POSE)}
 #: Phases whose targets get the pitch feedback.
 FEEDBACK_PHASES = (CROUCH, RISE, HOLD)
 #: The feedback acts only while the pelvis is upright enough for its pitch to be defined: g_z below this.
@@ -168,22 +175,16 @@ class KeyframeHumanoidPolicy(HumanoidScriptedPolicy):
 
     def reset(self, spec: RobotSpec, num_envs: int) -> None:
         super().reset(spec, num_envs)
-        from frbench.policies import scripted_humanoid as sh
-
         rows = np.broadcast_to(np.atleast_2d(self.parameters), (num_envs, len(PARAMETERS)))
-        bases = {"push_b": sh.PUSH_B_POSE, "lift": sh.LIFT_POSE, "pike": sh.PIKE_POSE, "squat": sh.SQUAT_POSE,
-                 "crouch": sh.CROUCH_POSE}
         self.env_poses = {phase: np.tile(q, (num_envs, 1)) for phase, q in self.poses.items()}
+        ramped = {prefix: phase for prefix, (phase, _) in _TUNED_PHASES.items()} | {"rise": RISE, "lie": LIE}
         for i, row in enumerate(rows):
-            for prefix, phase in _PHASE_OF.items():
-                self.env_poses[phase][i] = self._phase_pose(row, prefix, bases[prefix])
-            stand = self._phase_pose(row, "stand", {})
-            self.env_poses[RISE][i] = stand
-            self.env_poses[HOLD][i] = stand
-            for prefix, phase in (*_PHASE_OF.items(), ("rise", RISE), ("lie", LIE)):
-                self.ramp[i, phase] = max(1, int(round(self._value(row, f"ramp.{prefix}"))))
-        column = {n: np.array(rows[:, PARAMETER_NAMES.index(n)]) for n in PARAMETER_NAMES if n.startswith("fb.")}
-        self.fb = column
+            for prefix, (phase, base) in _TUNED_PHASES.items():
+                self.env_poses[phase][i] = self._phase_pose(row, prefix, base)
+            self.env_poses[RISE][i] = self.env_poses[HOLD][i] = self._phase_pose(row, "stand", {})
+            for prefix, phase in ramped.items():
+                self.ramp[i, phase] = max(1, round(self._value(row, f"ramp.{prefix}")))
+        self.fb = {n: np.array(rows[:, PARAMETER_NAMES.index(n)]) for n in PARAMETER_NAMES if n.startswith("fb.")}
         self.hip_ids = [self.index[f"{s}_hip_pitch_joint"] for s in ("left", "right")]
         self.ankle_ids = [self.index[f"{s}_ankle_pitch_joint"] for s in ("left", "right")]
 
