@@ -17,7 +17,12 @@ from frbench.policies.keyframe_humanoid import (
     decode,
     load_parameters,
 )
-from frbench.policies.keyframe_search import episode_scores, upright_success
+from frbench.policies.keyframe_search import (
+    episode_scores,
+    non_prone_starts,
+    roll_scores,
+    upright_success,
+)
 from frbench.policies.registry import load_policy
 from frbench.robots import get_robot
 from tests.test_scripted import _obs
@@ -56,6 +61,47 @@ def test_one_parameter_row_per_environment():
     policy = KeyframeHumanoidPolicy(rows)
     policy.reset(spec, 2)
     assert not np.allclose(policy.env_poses[max(policy.env_poses)][0], policy.env_poses[max(policy.env_poses)][1])
+
+
+def test_initial_roll_parameters_reproduce_the_scripted_roll_and_tuned_ones_change_it():
+    from frbench.policies.scripted_humanoid import HumanoidScriptedPolicy
+
+    spec = get_robot("g1")
+    scripted = HumanoidScriptedPolicy()
+    scripted.reset(spec, 1)
+    tuned = INITIAL.copy()
+    tuned[PARAMETER_NAMES.index("roll.waist_yaw")] = 0.4
+    policy = KeyframeHumanoidPolicy(np.stack([INITIAL, tuned]))
+    policy.reset(spec, 2)
+    yaw = spec.joint_names.index("waist_yaw_joint")
+    for direction in (-1, 1):
+        for stage in (0, 1):
+            assert np.allclose(policy.env_roll[direction, stage][0], scripted.roll_pose(direction, stage))
+            assert policy.env_roll[direction, stage][1][yaw] == pytest.approx(0.4 * direction)
+    assert policy.ramp[0, 1] == 30  # ramp.roll (ROLL is phase 1)
+
+
+def test_roll_score_prefers_an_early_roll_that_stays_face_down():
+    from frbench.policies.scripted_humanoid import LIE, PUSH_A, ROLL
+
+    steps = 120
+    phases = np.full((steps, 4), ROLL)
+    phases[:10] = LIE
+    phases[30:, 0] = PUSH_A  # face down early
+    phases[90:, 1] = PUSH_A  # face down late
+    phases[30:, 3] = PUSH_A  # face down early, then tips back onto the side
+    gravity_x = np.zeros((steps, 4))
+    gravity_x[30:, 0] = gravity_x[90:, 1] = 0.9
+    gravity_x[30:60, 3] = 0.9
+    scores = roll_scores(phases, gravity_x)
+    assert scores[0] == pytest.approx(2 + (1 - 30 / 120) + 0.45 + 0.45)
+    assert scores[2] == 0.0  # never left ROLL, never face down
+    assert scores[0] > scores[3] > scores[1] > scores[2]
+
+
+def test_roll_starts_are_the_non_prone_ones():
+    starts = non_prone_starts([4], episodes=8)
+    assert (4, 1) not in starts and len(starts) == 7  # seed 4 episode 1 is the only prone start of the eight
 
 
 def test_shaped_score_ranks_upright_success_first():

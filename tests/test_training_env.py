@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import torch
 
-from frbench.errors import FrbenchError
+from frbench.errors import FrbenchError, PolicyError
 from frbench.training.env import (
     RecoveryTrainingEnv,
     TrainEnvConfig,
@@ -193,6 +193,42 @@ def test_a_humanoid_residual_policy_trains_and_adds_its_action_to_the_base_contr
     assert targets.shape == (2, 29) and np.abs(policy.action).max() > 0
 
 
+def test_a_residual_policy_keeps_the_base_controller_parameters_it_was_trained_with(tmp_path):
+    from frbench.policies.keyframe_humanoid import (
+        PARAMETER_NAMES,
+        KeyframeHumanoidPolicy,
+        load_parameters,
+    )
+    from frbench.policies.registry import (
+        base_controller_parameters,
+        load_base_controller,
+        load_policy,
+    )
+    from frbench.robots import get_robot
+    from frbench.training.run import TrainingRun
+
+    shipped = base_controller_parameters("keyframe-humanoid")
+    assert list(shipped) == list(PARAMETER_NAMES) and np.allclose(list(shipped.values()), load_parameters())
+    assert base_controller_parameters("zero") == {}
+    trained_with = {**shipped, "stand.knee": 0.9}  # as if the shipped parameters were tuned after training
+    cfg = TrainEnvConfig(num_envs=2, robot="g1", randomize=False, families=("flat",), episode_steps=3, settle_steps=2,
+                         base_controller="keyframe-humanoid", base_controller_parameters=trained_with,
+                         action_scale=0.1)
+    run = TrainingRun(tmp_path / "g1", "ppo", cfg, total_steps=2 * 24, checkpoint_every=1)
+    assert run.env.controller.parameter_dict()["stand.knee"] == 0.9
+    run.train(progress_bar=False)
+    policy = load_policy(str(tmp_path / "g1"))
+    assert isinstance(policy.base_controller, KeyframeHumanoidPolicy)
+    assert policy.base_controller.parameter_dict() == trained_with
+    with pytest.raises(PolicyError, match="base controller 'zero' takes no parameters"):
+        load_base_controller("zero", {"stand.knee": 0.9})
+    spec = get_robot("g1")
+    policy.reset(spec, 1)
+    assert policy.act({"base_angvel": np.zeros((1, 3)), "projected_gravity": np.array([[1.0, 0.0, 0.0]]),
+                       "joint_pos": np.tile(spec.default_pose, (1, 1)), "joint_vel": np.zeros((1, 29)),
+                       "previous_action": np.tile(spec.default_pose, (1, 1))}).shape == (1, 29)
+
+
 def test_rma_phase_two_runs_on_the_recovery_env_and_deploys_without_extrinsics(tmp_path):
     from frbench.errors import FrbenchError
     from frbench.policies.registry import load_policy
@@ -323,3 +359,17 @@ def test_a_named_robot_keeps_its_per_joint_gains_scaled_by_one_factor_per_episod
         factor = ours / theirs
         np.testing.assert_allclose(factor, factor[:, :1].repeat(factor.shape[1], axis=1), rtol=1e-12)
         assert (factor >= NAMED_ROBOT_GAIN_FACTORS[0]).all() and (factor <= NAMED_ROBOT_GAIN_FACTORS[1]).all()
+
+
+def test_train_command_records_the_settle_and_the_base_controller_parameters(tmp_path):
+    from frbench.cli import main
+    from frbench.policies.registry import base_controller_parameters
+
+    out = tmp_path / "g1"
+    assert main(["train", "--method", "ppo", "--robots", "g1", "--terrains", "flat", "--envs", "2", "--steps", "48",
+                 "--episode-steps", "3", "--settle-steps", "4", "--base-controller", "keyframe-humanoid",
+                 "--action-scale", "0.1", "--no-randomize", "--out", str(out)]) == 0
+    env = json.loads((out / "config.json").read_text())["env"]
+    assert env["settle_steps"] == 4 and env["episode_steps"] == 3
+    assert env["base_controller_parameters"] == base_controller_parameters("keyframe-humanoid")
+    assert main(["train", "--robots", "g1", "--settle-steps", "-1", "--out", str(tmp_path / "bad")]) == 2

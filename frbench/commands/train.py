@@ -26,6 +26,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="nominal physics: no gain, motor, friction, payload or CoM randomisation (the evaluation's)")
     p.add_argument("--no-stability", action="store_true", help="drop the stability reward terms (ablation)")
     p.add_argument("--episode-steps", type=int, default=350, help="training episode length (paper: 350)")
+    p.add_argument("--settle-steps", type=int, default=25,
+                   help="control steps a fallen start settles on soft gains before the episode (default 25; the "
+                        "evaluation's 1 s is 50)")
     p.add_argument("--action-scale", type=float, default=None,
                    help="q* = q̊ + scale·a (default: TrainEnvConfig's; the paper's table reads 1)")
     p.add_argument("--demo-starts", type=float, default=0.0, metavar="FRACTION",
@@ -134,14 +137,19 @@ def run(args) -> int:
 
                 raise unknown_name("terrain", family, FAMILIES)
         args.steps = 20e6 if args.steps is None else args.steps
-        if args.steps <= 0 or args.envs < 1:
-            raise FrbenchError("--steps and --envs must be positive")
+        if args.steps <= 0 or args.envs < 1 or args.settle_steps < 0:
+            raise FrbenchError("--steps and --envs must be positive, --settle-steps at least 0")
         if not 0.0 <= args.demo_starts <= 1.0:
             raise FrbenchError(f"--demo-starts {args.demo_starts}: expected a fraction in [0, 1]")
         if not 0.0 <= args.assist_force <= 2.0:
             raise FrbenchError(f"--assist-force {args.assist_force}: expected a fraction of the weight in [0, 2]")
         if args.action_scale is not None and args.action_scale <= 0:
             raise FrbenchError(f"--action-scale {args.action_scale}: expected a positive number")
+        controller_parameters = {}
+        if args.base_controller:
+            from frbench.policies.registry import base_controller_parameters
+
+            controller_parameters = base_controller_parameters(args.base_controller)
         reward = training_reward_config()
         if args.robots:
             from frbench.robots import get_robot
@@ -155,9 +163,10 @@ def run(args) -> int:
             reward = reward.with_weight(term, weight, f"set on the command line ({command})")
         env_cfg = TrainEnvConfig(
             num_envs=args.envs, backend=args.backend, robot=args.robots, num_morphologies=args.morphologies,
-            episode_steps=args.episode_steps, families=families, curriculum=not args.no_curriculum,
+            episode_steps=args.episode_steps, settle_steps=args.settle_steps, families=families, curriculum=not args.no_curriculum,
             randomize=not args.no_randomize,
-            reward=reward, morphology_ranges=ranges, seed=args.seed, demo_start_fraction=args.demo_starts, base_controller=args.base_controller,
+            reward=reward, morphology_ranges=ranges, seed=args.seed, demo_start_fraction=args.demo_starts,
+            base_controller=args.base_controller, base_controller_parameters=controller_parameters,
             demo_start_until=args.demo_until if args.demo_until is not None else args.steps / 2,
             assist_force=args.assist_force,
             assist_until=args.assist_until if args.assist_until is not None else args.steps / 2,

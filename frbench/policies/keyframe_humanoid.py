@@ -61,6 +61,11 @@ from frbench.policies.scripted_humanoid import (
     PUSH_B,
     PUSH_B_POSE,
     RISE,
+    ROLL,
+    ROLL_B_DOWN_SIDE,
+    ROLL_B_UP_SIDE,
+    ROLL_DOWN_SIDE,
+    ROLL_UP_SIDE,
     SQUAT,
     SQUAT_POSE,
     HumanoidScriptedPolicy,
@@ -115,6 +120,23 @@ PARAMETERS = (
     ("fb.kd_hip", 0.0, 0.05, -0.3, 0.3),
     ("fb.ref_crouch", 0.5, 0.2, -0.5, 1.2),
     ("fb.ref_stand", 0.0, 0.1, -0.4, 0.4),
+    ("roll_down.shoulder_pitch", -2.6, 0.4, -3.0, 2.5),
+    ("roll_down.shoulder_roll", 0.3, 0.3, -0.5, 2.0),
+    ("roll_down.elbow", 1.5, 0.4, -1.0, 2.0),
+    ("roll_up.hip_pitch", -1.2, 0.4, -2.4, 1.0),
+    ("roll_up.hip_roll", -0.4, 0.2, -0.5, 1.5),
+    ("roll_up.knee", 1.0, 0.4, 0.0, 2.8),
+    ("roll_up.shoulder_pitch", -1.5, 0.4, -3.0, 2.5),
+    ("roll_up.shoulder_roll", -1.0, 0.3, -1.5, 2.0),
+    ("roll_up.elbow", 0.5, 0.4, -1.0, 2.0),
+    ("roll.waist_yaw", 1.2, 0.3, 0.0, 2.5),
+    ("roll_b_down.hip_pitch", 0.3, 0.3, -1.5, 1.5),
+    ("roll_b_down.shoulder_pitch", -2.6, 0.4, -3.0, 2.5),
+    ("roll_b_up.hip_pitch", -1.6, 0.4, -2.4, 1.0),
+    ("roll_b_up.knee", 1.2, 0.4, 0.0, 2.8),
+    ("roll_b_up.shoulder_pitch", -1.6, 0.4, -3.0, 2.5),
+    ("roll_b_up.shoulder_roll", 0.0, 0.3, -1.5, 2.0),
+    ("ramp.roll", 30, 8, 5, 60),
 )
 PARAMETER_NAMES = tuple(p[0] for p in PARAMETERS)
 INITIAL = np.array([p[1] for p in PARAMETERS], dtype=float)
@@ -163,27 +185,55 @@ class KeyframeHumanoidPolicy(HumanoidScriptedPolicy):
     def __init__(self, parameters: np.ndarray | None = None):
         self.parameters = load_parameters() if parameters is None else np.asarray(parameters, dtype=float)
 
+    def parameter_dict(self) -> dict[str, float]:
+        """The parameters by name (one row), for recording with a policy trained over this controller."""
+        row = np.atleast_2d(self.parameters)[0]
+        return {name: float(v) for name, v in zip(PARAMETER_NAMES, row)}
+
+    @classmethod
+    def from_parameter_dict(cls, values: dict[str, float]) -> KeyframeHumanoidPolicy:
+        """The controller with the parameters ``values`` (name → value, as `parameter_dict` writes them)."""
+        missing = set(PARAMETER_NAMES) - set(values)
+        if missing:
+            raise ValueError(f"keyframe-humanoid parameters: missing {sorted(missing)}")
+        return cls(np.array([float(values[name]) for name in PARAMETER_NAMES]))
+
     def _value(self, row: np.ndarray, name: str) -> float:
         return float(row[PARAMETER_NAMES.index(name)])
 
-    def _phase_pose(self, row: np.ndarray, prefix: str, base: dict) -> np.ndarray:
+    def _named(self, row: np.ndarray, prefix: str, base: dict) -> dict:
+        """``base`` (joint → angle) with the ``<prefix>.<joint>`` parameters of ``row`` in place."""
         values = dict(base)
         for name in PARAMETER_NAMES:
             if name.startswith(prefix + "."):
                 values[name.split(".", 1)[1]] = self._value(row, name)
-        return self._pose(values)
+        return values
+
+    def _phase_pose(self, row: np.ndarray, prefix: str, base: dict) -> np.ndarray:
+        return self._pose(self._named(row, prefix, base))
+
+    def _roll_goal(self, i: int, stage: int) -> np.ndarray:
+        return self.env_roll[int(self.direction[i]), stage][i]
 
     def reset(self, spec: RobotSpec, num_envs: int) -> None:
         super().reset(spec, num_envs)
         rows = np.broadcast_to(np.atleast_2d(self.parameters), (num_envs, len(PARAMETERS)))
         self.env_poses = {phase: np.tile(q, (num_envs, 1)) for phase, q in self.poses.items()}
-        ramped = {prefix: phase for prefix, (phase, _) in _TUNED_PHASES.items()} | {"rise": RISE, "lie": LIE}
+        ramped = {prefix: phase for prefix, (phase, _) in _TUNED_PHASES.items()} | {"rise": RISE, "lie": LIE,
+                                                                                    "roll": ROLL}
         for i, row in enumerate(rows):
             for prefix, (phase, base) in _TUNED_PHASES.items():
                 self.env_poses[phase][i] = self._phase_pose(row, prefix, base)
             self.env_poses[RISE][i] = self.env_poses[HOLD][i] = self._phase_pose(row, "stand", {})
             for prefix, phase in ramped.items():
                 self.ramp[i, phase] = max(1, round(self._value(row, f"ramp.{prefix}")))
+        self.env_roll = {}  # (direction, stage) → (N, J) roll poses
+        for direction in (-1, 1):
+            for stage, sides in enumerate((("roll_down", ROLL_DOWN_SIDE, "roll_up", ROLL_UP_SIDE),
+                                           ("roll_b_down", ROLL_B_DOWN_SIDE, "roll_b_up", ROLL_B_UP_SIDE))):
+                self.env_roll[direction, stage] = np.stack([self.roll_pose(
+                    direction, stage, self._named(row, sides[0], sides[1]), self._named(row, sides[2], sides[3]),
+                    self._value(row, "roll.waist_yaw")) for row in rows])
         self.fb = {n: np.array(rows[:, PARAMETER_NAMES.index(n)]) for n in PARAMETER_NAMES if n.startswith("fb.")}
         self.hip_ids = [self.index[f"{s}_hip_pitch_joint"] for s in ("left", "right")]
         self.ankle_ids = [self.index[f"{s}_ankle_pitch_joint"] for s in ("left", "right")]

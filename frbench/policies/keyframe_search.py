@@ -92,10 +92,42 @@ def upright_success(heights: np.ndarray, gravity_z: np.ndarray, success: np.ndar
     return out
 
 
-class Evaluator:
-    """Runs candidates from fixed g1/flat/level-1 starts in one batched MuJoCo task."""
+#: Control steps of a ``--stage roll`` episode (2.4 s): a roll that takes longer leaves no time to get up.
+ROLL_EPISODE_STEPS = 120
 
-    def __init__(self, starts: list[tuple[int, int]], popsize: int, backend: str = "mujoco"):
+
+def roll_scores(phases: np.ndarray, gravity_x: np.ndarray) -> np.ndarray:
+    """Score per episode of the roll onto the belly from the controller's phases (T, N) and the projected
+    gravity x (T, N) (+1 face down): 2 once the controller leaves ``LIE``/``ROLL`` face down (it then pushes
+    up), + 1 − (that step / T) for getting there early, + 0.5 × the largest and + 0.5 × the final face-down
+    g_x (clipped to [0, 1]; the second penalises tipping back while pushing up)."""
+    from frbench.policies.scripted_humanoid import LIE, ROLL
+
+    steps = phases.shape[0]
+    rolled = (phases != LIE) & (phases != ROLL)
+    reached = rolled.any(axis=0)
+    first = np.where(reached, np.argmax(rolled, axis=0), steps)
+    down = np.clip(gravity_x, 0.0, 1.0)
+    return 2.0 * reached + reached * (1.0 - first / steps) + 0.5 * down.max(axis=0) + 0.5 * down[-1]
+
+
+def non_prone_starts(seeds, episodes: int = 8) -> list[tuple[int, int]]:
+    """(seed, episode) of every g1/flat/level-1 start in ``seeds`` that is not prone (the ones that roll)."""
+    from frbench.robots import get_robot
+    from frbench.terrains import make_terrain
+
+    spec, out = get_robot("g1"), []
+    for seed in seeds:
+        kinds = draw_starts(spec, make_terrain("flat", 1, seed), "flat", 1, seed, range(episodes)).kinds
+        out += [(seed, e) for e, kind in enumerate(kinds) if kind != "prone"]
+    return out
+
+
+class Evaluator:
+    """Runs candidates from fixed g1/flat/level-1 starts in one batched MuJoCo task (whole episodes, scored by
+    `episode_scores`; ``roll=True``: `ROLL_EPISODE_STEPS` scored by `roll_scores`)."""
+
+    def __init__(self, starts: list[tuple[int, int]], popsize: int, backend: str = "mujoco", roll: bool = False):
         from frbench.robots import get_robot
         from frbench.terrains import make_terrain
 
@@ -111,6 +143,7 @@ class Evaluator:
             kinds=self.kinds * popsize,
         )
         self.task = RecoveryTask(self.spec, backend, make_terrain("flat", 1, starts[0][0]), popsize * len(starts))
+        self.roll = roll
 
     def run(self, parameters: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(scores (popsize,), successes (popsize, n_starts), max heights (popsize, n_starts)) of candidate
@@ -119,7 +152,10 @@ class Evaluator:
         policy = KeyframeHumanoidPolicy(rows)
         obs = self.task.reset(self.starts)
         policy.reset(self.spec, len(rows))
-        return _scored_rollout(self.task, policy, obs, EPISODE_STEPS, (self.popsize, self.n_starts))
+        shape = (self.popsize, self.n_starts)
+        if self.roll:
+            return _roll_rollout(self.task, policy, obs, ROLL_EPISODE_STEPS, shape)
+        return _scored_rollout(self.task, policy, obs, EPISODE_STEPS, shape)
 
     def close(self) -> None:
         self.task.close()
@@ -139,6 +175,23 @@ def _scored_rollout(task, policy, obs: dict, steps: int, shape: tuple[int, int])
     return scores.reshape(shape).mean(axis=1), good.reshape(shape), heights.max(axis=0).reshape(shape)
 
 
+def _roll_rollout(task, policy, obs: dict, steps: int, shape: tuple[int, int]):
+    """Like `_scored_rollout`, scored by `roll_scores`; the "successes" are the episodes that reached the
+    push-up face down and were still face down (g_x > 0.5) at the end."""
+    from frbench.policies.scripted_humanoid import LIE, ROLL
+
+    n = shape[0] * shape[1]
+    phases, gravity_x, heights = np.empty((steps, n), dtype=int), np.empty((steps, n)), np.empty((steps, n))
+    for t in range(steps):
+        obs = task.step(policy.act(obs))
+        phases[t], gravity_x[t], heights[t] = policy.phase, obs["projected_gravity"][:, 0], task.signals.height
+    scores = roll_scores(phases, gravity_x)
+    good = ((phases != LIE) & (phases != ROLL)).any(axis=0) & (gravity_x[-1] > 0.5)
+    return scores.reshape(shape).mean(axis=1), good.reshape(shape), heights.max(axis=0).reshape(shape)
+
+
+#: Parameters tuned by ``--stage roll`` (the others stay at ``--init``).
+ROLL_PARAMETERS = tuple(n for n in PARAMETER_NAMES if n.startswith(("roll", "ramp.roll", "ramp.lie")))
 #: Parameters tuned by ``--stage rise`` (the others stay at ``--init``).
 RISE_PARAMETERS = tuple(n for n in PARAMETER_NAMES
                         if n.startswith(("crouch.", "stand.", "fb.")) or n in ("ramp.crouch", "ramp.rise"))
@@ -211,8 +264,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--init", default=None, help="start from the parameters of this JSON file")
     parser.add_argument("--out", required=True)
     parser.add_argument("--max-minutes", type=float, default=60.0)
-    parser.add_argument("--stage", choices=("full", "rise"), default="full",
-                        help="full: whole episodes from --starts; rise: only the rise from --states")
+    parser.add_argument("--stage", choices=("full", "rise", "roll"), default="full",
+                        help="full: whole episodes from --starts; rise: only the rise from --states; roll: the roll "
+                             "onto the belly (2.4 s) from --starts")
+    parser.add_argument("--roll-seeds", default=None,
+                        help="roll stage: instead of --starts, every non-prone start of these seeds (e.g. 4-9)")
     parser.add_argument("--states", default=None, help="rise stage: .npz of recorded states")
     parser.add_argument("--steps", type=int, default=150, help="rise stage: control steps per episode")
     args = parser.parse_args(argv)
@@ -221,6 +277,9 @@ def main(argv: list[str] | None = None) -> int:
     command = "python -m frbench.policies.keyframe_search " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
     out = Path(args.out)
     starts = parse_starts(args.starts)
+    if args.roll_seeds:
+        low, _, high = args.roll_seeds.partition("-")
+        starts = non_prone_starts(range(int(low), int(high or low) + 1))
     base = INITIAL.copy()
     if args.init:
         from frbench.policies.keyframe_humanoid import load_parameters
@@ -230,6 +289,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.stage == "rise":
         tuned = np.array([PARAMETER_NAMES.index(n) for n in RISE_PARAMETERS])
         evaluator = RiseEvaluator(args.states, args.popsize, args.steps)
+    elif args.stage == "roll":
+        tuned = np.array([PARAMETER_NAMES.index(n) for n in ROLL_PARAMETERS])
+        evaluator = Evaluator(starts, args.popsize, roll=True)
     else:
         evaluator = Evaluator(starts, args.popsize)
     x0 = ((base - INITIAL) / SCALE)[tuned]

@@ -86,9 +86,10 @@ class LearnedPolicy:
 
         self.base_controller = None
         if self.base_controller_name:
-            from frbench.policies.registry import load_policy
+            from frbench.policies.registry import load_base_controller
 
-            self.base_controller = load_policy(self.base_controller_name)
+            self.base_controller = load_base_controller(self.base_controller_name,
+                                                        config["env"].get("base_controller_parameters"))
 
     def supports(self, spec: RobotSpec) -> bool:
         """Robots of the training robots' kind and joint count (and its base controller's, if residual)."""

@@ -60,6 +60,24 @@ def shipped_checkpoint(name: str) -> Path:
     return Path(__file__).resolve().parent / SHIPPED_CHECKPOINTS[name]
 
 
+def load_base_controller(name: str, parameters: dict | None = None):
+    """The policy ``name`` as the base controller of a residual policy, with the tunable ``parameters`` it was
+    trained with (name → value, from `base_controller_parameters`; None or empty: its current ones)."""
+    policy = load_policy(name)
+    if parameters:
+        if not hasattr(policy, "from_parameter_dict"):
+            raise PolicyError(f"base controller {name!r} takes no parameters, but the checkpoint records some")
+        policy = type(policy).from_parameter_dict(parameters)
+    return policy
+
+
+def base_controller_parameters(name: str) -> dict:
+    """The tunable parameters of base controller ``name`` as shipped now (empty if it has none), recorded with a
+    residual policy so that later tuning of the controller does not change the trained policy."""
+    policy = load_policy(name)
+    return policy.parameter_dict() if hasattr(policy, "parameter_dict") else {}
+
+
 def load_policy(name_or_path: str):
     """The policy named ``name_or_path`` or stored at that path."""
     if name_or_path in BUILTIN_POLICIES:

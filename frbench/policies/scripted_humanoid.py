@@ -215,14 +215,23 @@ class HumanoidScriptedPolicy:
         """Every fixed key pose by phase name (after ``reset``)."""
         return {PHASE_NAMES[phase]: q.copy() for phase, q in self.poses.items()}
 
-    def roll_pose(self, direction: int, stage: int = 0) -> np.ndarray:
+    def roll_pose(self, direction: int, stage: int = 0, down_side: dict | None = None, up_side: dict | None = None,
+                  waist_yaw: float = ROLL_WAIST_YAW) -> np.ndarray:
         """Pose rolling towards ``direction`` (+1: the left side goes down, g_y grows); stage 0 rolls from the
-        back onto the side, stage 1 from the side onto the belly."""
-        down = {**LIE_POSE, **(ROLL_DOWN_SIDE, ROLL_B_DOWN_SIDE)[stage], "waist_yaw": direction * ROLL_WAIST_YAW}
-        up = {**LIE_POSE, **(ROLL_UP_SIDE, ROLL_B_UP_SIDE)[stage], "waist_yaw": direction * ROLL_WAIST_YAW}
+        back onto the side, stage 1 from the side onto the belly. ``down_side``/``up_side`` replace the stage's
+        key angles of the limbs going down/up (default: ``ROLL_DOWN_SIDE``/``ROLL_UP_SIDE`` for stage 0,
+        ``ROLL_B_DOWN_SIDE``/``ROLL_B_UP_SIDE`` for stage 1); ``waist_yaw`` [rad] twists the chest."""
+        down_side = (ROLL_DOWN_SIDE, ROLL_B_DOWN_SIDE)[stage] if down_side is None else down_side
+        up_side = (ROLL_UP_SIDE, ROLL_B_UP_SIDE)[stage] if up_side is None else up_side
+        down = {**LIE_POSE, **down_side, "waist_yaw": direction * waist_yaw}
+        up = {**LIE_POSE, **up_side, "waist_yaw": direction * waist_yaw}
         if direction > 0:
             return self._pose(down, _mirror(up))
         return self._pose(up, _mirror(down))
+
+    def _roll_goal(self, i: int, stage: int) -> np.ndarray:
+        """Environment ``i``'s roll pose for ``stage`` in its chosen direction (subclasses tune it per environment)."""
+        return self.roll_pose(self.direction[i], stage)
 
     # ------------------------------------------------------------- interface
     def reset(self, spec: RobotSpec, num_envs: int) -> None:
@@ -267,7 +276,7 @@ class HumanoidScriptedPolicy:
         else:
             self.direction[i] = -self.direction[i]
         self.roll_stage[i] = 0
-        self._enter(i, ROLL, self.roll_pose(self.direction[i]))
+        self._enter(i, ROLL, self._roll_goal(i, 0))
 
     def _transition(self, i: int, g: np.ndarray) -> None:
         phase, steps = self.phase[i], self.steps[i]
@@ -284,7 +293,7 @@ class HumanoidScriptedPolicy:
                 self._enter(i, PUSH_A)
             elif self.direction[i] * gy > SIDE_GY and not self.roll_stage[i]:
                 self.roll_stage[i] = 1
-                self._enter(i, ROLL, self.roll_pose(self.direction[i], 1))
+                self._enter(i, ROLL, self._roll_goal(i, 1))
             elif steps > ROLL_TIMEOUT:
                 self._enter(i, LIE)
             return

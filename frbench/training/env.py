@@ -185,6 +185,8 @@ class TrainEnvConfig:
     #: A policy name (e.g. ``"scripted-humanoid"``) whose joint targets the learned action is added to:
     #: q* = base(o) + action_scale·a (a residual policy); None: q* = q̊ + action_scale·a.
     base_controller: str | None = None
+    #: The base controller's tunable parameters at the start of the run (name → value; empty: it has none).
+    base_controller_parameters: dict = field(default_factory=dict)
 
 
 def _yaw(quat: np.ndarray) -> np.ndarray:
@@ -255,9 +257,9 @@ class RecoveryTrainingEnv(VecEnv):
             self.nominal_head_height = float(self._head_positions(standing, [0])[0, 2])
         self.controller = None
         if self.cfg_obj.base_controller:
-            from frbench.policies.registry import load_policy
+            from frbench.policies.registry import load_base_controller
 
-            self.controller = load_policy(self.cfg_obj.base_controller)
+            self.controller = load_base_controller(self.cfg_obj.base_controller, self.cfg_obj.base_controller_parameters)
             if not self.controller.supports(self.spec):
                 raise ValueError(f"base_controller {self.cfg_obj.base_controller!r} does not support {self.spec.name!r}")
 
