@@ -220,6 +220,11 @@ def test_a_residual_policy_keeps_the_base_controller_parameters_it_was_trained_w
     policy = load_policy(str(tmp_path / "g1"))
     assert isinstance(policy.base_controller, KeyframeHumanoidPolicy)
     assert policy.base_controller.parameter_dict() == trained_with
+    from frbench.policies.export import export_onnx
+
+    with pytest.raises(PolicyError, match="is a residual over 'keyframe-humanoid'"):
+        export_onnx(str(tmp_path / "g1"), tmp_path / "g1.onnx")
+    assert not (tmp_path / "g1.onnx").exists()
     with pytest.raises(PolicyError, match="base controller 'zero' takes no parameters"):
         load_base_controller("zero", {"stand.knee": 0.9})
     spec = get_robot("g1")

@@ -26,8 +26,13 @@ def export_onnx(policy_path: str, out: Path) -> Path:
     policy = load_policy(policy_path)
     if not isinstance(policy, LearnedPolicy):
         raise PolicyError(f"policy {policy_path!r} is not a trained checkpoint; only trained policies export to ONNX")
+    if policy.base_controller is not None:
+        raise PolicyError(f"policy {policy_path!r} is a residual over {policy.base_controller_name!r}, whose targets "
+                          "come from Python code outside the network; an ONNX file would hold the residual alone. "
+                          "Run it through frbench (frbench evaluate / render) instead")
     if out.suffix != ".onnx":
         raise PolicyError(f"--out {out}: expected a .onnx file")
+    j = policy.num_actions
     model = policy.actor.as_onnx(verbose=False)
     model.eval()
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -37,9 +42,10 @@ def export_onnx(policy_path: str, out: Path) -> Path:
     sidecar = {
         "method": policy.method,
         "inputs": {name: list(tensor.shape) for name, tensor in zip(model.input_names, inputs)},
-        "observation": "o_t = [base angular velocity (body) 3, projected gravity 3, q - q_default 12, "
-                       "joint velocity 12, previous action 12]; history = last 5 o_t, oldest first",
-        "action": f"joint targets q* = q_default + {policy.action_scale} * actions, canonical joint order FL, FR, RL, RR",
+        "observation": f"o_t = [base angular velocity (body) 3, projected gravity 3, q - q_default {j}, "
+                       f"joint velocity {j}, previous action {j}]; history = last {policy.frames} o_t, oldest first",
+        "action": f"joint targets q* = q_default + {policy.action_scale} * actions, in the robot's joint order"
+                  + (" (canonical FL, FR, RL, RR)" if policy.robot_kind == "quadruped" else ""),
         "checkpoint": str(policy.checkpoint),
     }
     atomic_write_text(out.with_suffix(".json"), json.dumps(sidecar, indent=1) + "\n")

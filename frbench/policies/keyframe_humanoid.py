@@ -5,8 +5,10 @@ The phases, their order and the fall checks are those of
 for backs and sides → ``PUSH_A`` → ``PUSH_B`` → ``LIFT`` → ``PIKE`` → ``SQUAT``
 → ``CROUCH`` → ``RISE`` → ``HOLD``). What differs:
 
-* the key poses of ``PUSH_B`` … ``HOLD`` and the ramps of those phases come
-  from a parameter vector (`PARAMETERS`: named left-side joint angles, mirrored
+* the key poses of ``PUSH_B`` … ``HOLD``, the two roll poses of ``ROLL`` (back
+  → side, side → belly: ``roll_down.*``/``roll_up.*`` for the limbs going
+  down/up, ``roll_b_*`` for the second stage, ``roll.waist_yaw``) and the ramps
+  of those phases come from a parameter vector (`PARAMETERS`: named left-side joint angles, mirrored
   for the right side, and ramp lengths in control steps), one vector per
   environment, so a batch of candidates can run side by side
   (`frbench.policies.keyframe_search`);
@@ -18,7 +20,9 @@ for backs and sides → ``PUSH_A`` → ``PUSH_B`` → ``LIFT`` → ``PIKE`` → 
   and θ_ref moving from ``ref_crouch`` to ``ref_stand`` with the rise.
 
 The shipped parameters are in ``keyframe_humanoid_params.json`` next to this
-module, with the commands that found them (CMA-ES, 4 prone starts: g1/flat/
+module, with the commands that found them; its roll parameters are the
+scripted controller's (a roll search found faster rolls that the rest of the
+motion could not use; docs/results.md, "G1") (CMA-ES, 4 prone starts: g1/flat/
 level 1 seed:episode 0:4, 1:0, 2:8, 3:3, the first two also in the grid below).
 
 Status (flat ground, measured): ``frbench evaluate --policy keyframe-humanoid
