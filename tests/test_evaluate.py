@@ -137,6 +137,21 @@ def test_evaluate_writes_consistent_results(tmp_path, capsys):
         assert cell["successes"] == sum(e["success"] for e in mine)
         assert cell["success_rate"] == cell["successes"] / 2
     assert {g["terrain"] for g in results["sim_to_sim"]} == {"flat", "gaps"}
+    # the per-start-pose table counts every episode once, per backend
+    pose_table = printed.split("Success by initial pose:")[1].split("\n\n")[0]
+    assert sum(int(n) for _, n in re.findall(r"(\d+)/(\d+)", pose_table)) == 16
+
+
+def test_initial_pose_table_counts_successes_per_pose_and_backend():
+    from frbench.evaluation.results import initial_pose_table
+
+    episodes = [{"robot": "g1", "backend": b, "initial_pose": pose, "success": won}
+                for b, pose, won in [("mujoco", "prone", True), ("mujoco", "prone", False), ("pybullet", "prone", False),
+                                     ("mujoco", "supine", False), ("pybullet", "supine", True)]]
+    rows = initial_pose_table(episodes).splitlines()
+    assert rows[0].split()[-2:] == ["mujoco", "pybullet"]
+    assert rows[2].split() == ["g1", "prone", "1/2", "(", "50.0%)", "0/1", "(", "0.0%)"]
+    assert rows[3].split() == ["g1", "supine", "0/1", "(", "0.0%)", "1/1", "(100.0%)"]
 
 
 @pytest.mark.parametrize("argv, message", [

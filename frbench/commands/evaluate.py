@@ -58,7 +58,7 @@ def run(args) -> int:
     from tqdm import tqdm
 
     from frbench.evaluation.grid import EvaluationRequest, build_results, run_grid, validate
-    from frbench.evaluation.results import results_table
+    from frbench.evaluation.results import initial_pose_table, results_table
     from frbench.io import atomic_write_text
 
     request = EvaluationRequest(
@@ -79,6 +79,7 @@ def run(args) -> int:
         episodes = run_grid(request, progress=lambda cell: bar.update(1))
     results = build_results(request, policy, episodes)
     print(results_table(results["summary"], results["sim_to_sim"]))
+    print("\nSuccess by initial pose:\n" + initial_pose_table(episodes))
     atomic_write_text(out, json.dumps(results, indent=1) + "\n")
     total = sum(c["successes"] for c in results["cells"])
     print(f"\n{total}/{len(episodes)} episodes succeeded. Results written to {out}")

@@ -97,3 +97,23 @@ def results_table(summary: list[dict], gaps: list[dict]) -> str:
         lines.append(f"{key[0]:<11} {key[1]:<8} {key[2]:>5} " + " ".join(f"{c:>15}" for c in cols)
                      + f" {('%+.1f pts' % (100 * gap)) if gap is not None else '-':>12}")
     return "\n".join(lines)
+
+
+def initial_pose_table(episodes: list[dict]) -> str:
+    """Plain-text table: successes / episodes per (robot, initial pose) and backend — from which starts a policy
+    fails. ``episodes``: per-episode records with ``robot``, ``backend``, ``initial_pose`` and ``success``."""
+    counts: dict[tuple, dict[str, list[int]]] = defaultdict(lambda: defaultdict(lambda: [0, 0]))
+    for e in episodes:
+        count = counts[(e["robot"], e["initial_pose"])][e["backend"]]
+        count[0] += bool(e["success"])
+        count[1] += 1
+    backends = sorted({e["backend"] for e in episodes})
+    header = f"{'robot':<11} {'initial pose':<12} " + " ".join(f"{b:>17}" for b in backends)
+    lines = [header, "-" * len(header)]
+    for key in sorted(counts):
+        cols = []
+        for backend in backends:
+            won, n = counts[key].get(backend, (0, 0))
+            cols.append(f"{won}/{n} ({100 * won / n:5.1f}%)" if n else "-")
+        lines.append(f"{key[0]:<11} {key[1]:<12} " + " ".join(f"{c:>17}" for c in cols))
+    return "\n".join(lines)
