@@ -57,7 +57,12 @@ def run(args) -> int:
     """Validate, run the grid with a progress bar, print the table, write the results atomically."""
     from tqdm import tqdm
 
-    from frbench.evaluation.grid import EvaluationRequest, build_results, run_grid, validate
+    from frbench.evaluation.grid import (
+        EvaluationRequest,
+        build_results,
+        run_grid,
+        validate,
+    )
     from frbench.evaluation.results import initial_pose_table, results_table
     from frbench.io import atomic_write_text
 
