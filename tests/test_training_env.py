@@ -378,3 +378,44 @@ def test_train_command_records_the_settle_and_the_base_controller_parameters(tmp
     assert env["settle_steps"] == 4 and env["episode_steps"] == 3
     assert env["base_controller_parameters"] == base_controller_parameters("keyframe-humanoid")
     assert main(["train", "--robots", "g1", "--settle-steps", "-1", "--out", str(tmp_path / "bad")]) == 2
+
+
+def test_a_gated_residual_acts_only_in_the_base_controllers_rise(tmp_path):
+    from frbench.policies.keyframe_humanoid import KeyframeHumanoidPolicy
+    from frbench.policies.registry import load_policy
+    from frbench.policies.scripted_humanoid import CROUCH, HOLD, LIE, RISE, ROLL
+    from frbench.robots import get_robot
+    from frbench.training.run import TrainingRun
+
+    spec = get_robot("g1")
+    controller = KeyframeHumanoidPolicy()
+    controller.reset(spec, 5)
+    controller.phase[:] = [LIE, ROLL, CROUCH, RISE, HOLD]
+    assert controller.residual_gate().tolist() == [0.0, 0.0, 1.0, 1.0, 1.0]
+
+    cfg = TrainEnvConfig(num_envs=2, robot="g1", randomize=False, families=("flat",), episode_steps=3, settle_steps=2,
+                         base_controller="keyframe-humanoid", residual_gate=True, action_scale=0.1)
+    run = TrainingRun(tmp_path / "g1", "ppo", cfg, total_steps=2 * 24, checkpoint_every=1)
+    run.train(progress_bar=False)
+    policy = load_policy(str(tmp_path / "g1"))
+    assert policy.residual_gate
+    policy.reset(spec, 2)
+    reference = KeyframeHumanoidPolicy()
+    reference.reset(spec, 2)
+    obs = {"base_angvel": np.zeros((2, 3)), "projected_gravity": np.tile([1.0, 0.0, 0.0], (2, 1)),
+           "joint_pos": np.tile(spec.default_pose, (2, 1)), "joint_vel": np.zeros((2, 29)),
+           "previous_action": np.tile(spec.default_pose, (2, 1))}
+    targets = policy.act(obs)  # both lie face down: the gate is closed, the key frames act alone
+    assert np.abs(policy.action).max() > 0
+    np.testing.assert_array_equal(targets, reference.act(obs))
+    for c in (policy.base_controller, reference):
+        c.phase[:] = [HOLD, LIE]  # the first one stands (and stays in HOLD while upright): its residual passes
+    obs["projected_gravity"] = np.tile([0.0, 0.0, -1.0], (2, 1))
+    targets = policy.act(obs)
+    assert policy.base_controller.phase.tolist() == [HOLD, LIE]
+    base = reference.act(obs)
+    np.testing.assert_allclose(targets[0], base[0] + 0.1 * policy.action[0], atol=1e-12)
+    np.testing.assert_array_equal(targets[1], base[1])
+    with pytest.raises(ValueError, match="base controller 'zero' has no residual_gate"):
+        TrainingRun(tmp_path / "zero", "ppo", TrainEnvConfig(num_envs=2, robot="g1", randomize=False,
+                    families=("flat",), base_controller="zero", residual_gate=True), total_steps=48)

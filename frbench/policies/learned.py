@@ -69,6 +69,7 @@ class LearnedPolicy:
         self.num_actions = int(data.get("num_actions", 12))
         self.robot_kind = str(data.get("robot_kind", "quadruped"))
         self.base_controller_name = config["env"].get("base_controller")
+        self.residual_gate = bool(config["env"].get("residual_gate", False))
         self.long_frames = int(config["env"].get("long_history", 0)) if "long_history" in self.groups else 0
         actor_class = resolve_callable(actor_cfg.pop("class_name"))
         widths = deployable_group_widths(self.num_actions, self.frames, self.long_frames)
@@ -124,8 +125,11 @@ class LearnedPolicy:
         with torch.inference_mode():
             action = self.actor(td).numpy().astype(np.float64)
         self.action = np.clip(action, -10.0, 10.0)
-        base = self.default_pose if self.base_controller is None else np.asarray(self.base_controller.act(obs))
-        return base + self.action_scale * self.action
+        if self.base_controller is None:
+            return self.default_pose + self.action_scale * self.action
+        base = np.asarray(self.base_controller.act(obs))
+        gate = self.base_controller.residual_gate()[:, None] if self.residual_gate else 1.0
+        return base + gate * self.action_scale * self.action
 
 
 def load_learned_policy(data: dict, path: Path) -> LearnedPolicy:

@@ -89,6 +89,8 @@ from frbench.robots.spec import RobotSpec
 
 LIE, ROLL, PUSH_A, PUSH_B, LIFT, PIKE, SQUAT, CROUCH, RISE, HOLD = range(10)
 PHASE_NAMES = ("lie", "roll", "push_a", "push_b", "lift", "pike", "squat", "crouch", "rise", "hold")
+#: Phases in which a gated residual policy may change the targets (`residual_gate`): the rise onto the feet.
+RESIDUAL_PHASES = (CROUCH, RISE, HOLD)
 
 #: Interpolation time [control steps of 0.02 s] from the previous targets to each phase's pose.
 RAMP_STEPS = np.array([10, 30, 10, 20, 35, 40, 45, 30, 40, 1])
@@ -261,6 +263,11 @@ class HumanoidScriptedPolicy:
         w = _smoothstep(self.steps / ramp)[:, None]
         self.target = self._clip(self.start + w * (self.goal - self.start))
         return self.target.copy()
+
+    def residual_gate(self) -> np.ndarray:
+        """(N,) 1.0 where a gated residual policy acts on the targets of the last `act` (phases in
+        `RESIDUAL_PHASES`), else 0.0 (the motion before the rise stays the controller's alone)."""
+        return np.isin(self.phase, RESIDUAL_PHASES).astype(float)
 
     # ------------------------------------------------------------ the machine
     def _enter(self, i: int, phase: int, goal: np.ndarray | None = None) -> None:

@@ -187,6 +187,9 @@ class TrainEnvConfig:
     base_controller: str | None = None
     #: The base controller's tunable parameters at the start of the run (name → value; empty: it has none).
     base_controller_parameters: dict = field(default_factory=dict)
+    #: Gated residual: q* = base(o) + gate·action_scale·a with the base controller's ``residual_gate()`` (N,)
+    #: (``keyframe-humanoid``: 1 in its rise, 0 before), so exploration cannot break the motion before the rise.
+    residual_gate: bool = False
 
 
 def _yaw(quat: np.ndarray) -> np.ndarray:
@@ -260,6 +263,8 @@ class RecoveryTrainingEnv(VecEnv):
             from frbench.policies.registry import load_base_controller
 
             self.controller = load_base_controller(self.cfg_obj.base_controller, self.cfg_obj.base_controller_parameters)
+            if self.cfg_obj.residual_gate and not hasattr(self.controller, "residual_gate"):
+                raise ValueError(f"residual_gate: base controller {self.cfg_obj.base_controller!r} has no residual_gate()")
             if not self.controller.supports(self.spec):
                 raise ValueError(f"base_controller {self.cfg_obj.base_controller!r} does not support {self.spec.name!r}")
 
@@ -451,7 +456,9 @@ class RecoveryTrainingEnv(VecEnv):
         action_prev2, action_prev = self.action_prev, self.action
         self.action_prev = action_prev
         self.action = np.clip(actions.detach().cpu().numpy().astype(np.float64), -10.0, 10.0)
-        targets = np.clip(self._base_targets() + self.cfg_obj.action_scale * self.action, self.lower, self.upper)
+        base = self._base_targets()
+        gate = self.controller.residual_gate()[:, None] if self.cfg_obj.residual_gate else 1.0
+        targets = np.clip(base + gate * self.cfg_obj.action_scale * self.action, self.lower, self.upper)
         self.qd_prev = self.state.qd
         self.backend.step(targets)
         self.state, self.contacts = self.backend.state(), self.backend.contacts()
