@@ -127,3 +127,18 @@ def test_a_prone_start_gets_up_in_mujoco():
     (record,) = run_cell(Cell("g1", "mujoco", "flat", 1, 1, 1), "keyframe-humanoid")
     assert record["initial_pose"] == "prone"
     assert record["success"] and not record["diverged"]
+
+
+def test_results_carry_the_parameter_files_checksum():
+    import hashlib
+
+    from frbench.evaluation.grid import EvaluationRequest, build_results
+
+    policy = load_policy("keyframe-humanoid")
+    assert policy.checkpoint == PARAMS_FILE
+    assert KeyframeHumanoidPolicy(INITIAL).checkpoint is None  # explicit parameters: no file behind them
+    request = EvaluationRequest(policy="keyframe-humanoid", robots=["g1"], backends=["mujoco"], terrains=["flat"],
+                                levels=[1], seeds=[0], episodes=1)
+    results = build_results(request, policy, [])
+    assert results["policy"]["checkpoint"] == str(PARAMS_FILE)
+    assert results["policy"]["sha256"] == hashlib.sha256(PARAMS_FILE.read_bytes()).hexdigest()

@@ -184,10 +184,12 @@ class KeyframeHumanoidPolicy(HumanoidScriptedPolicy):
     """
 
     name = "keyframe-humanoid"
-    checkpoint = None
 
     def __init__(self, parameters: np.ndarray | None = None):
         self.parameters = load_parameters() if parameters is None else np.asarray(parameters, dtype=float)
+        #: The shipped parameter file when it supplied the parameters: results record its path and SHA-256 as
+        #: they do a trained checkpoint's (the motion is those numbers).
+        self.checkpoint = PARAMS_FILE if parameters is None else None
 
     def parameter_dict(self) -> dict[str, float]:
         """The parameters by name (one row), for recording with a policy trained over this controller."""
