@@ -378,6 +378,9 @@ def test_train_command_records_the_settle_and_the_base_controller_parameters(tmp
     assert env["settle_steps"] == 4 and env["episode_steps"] == 3
     assert env["base_controller_parameters"] == base_controller_parameters("keyframe-humanoid")
     assert main(["train", "--robots", "g1", "--settle-steps", "-1", "--out", str(tmp_path / "bad")]) == 2
+    assert main(["train", "--robots", "g1", "--base-controller", "keyframe-humanoid", "--rise-starts", "0.5",
+                 "--out", str(tmp_path / "bad")]) == 2  # rise starts need the gate
+    assert not (tmp_path / "bad").exists()
 
 
 def test_a_gated_residual_acts_only_in_the_base_controllers_rise(tmp_path):
@@ -419,3 +422,27 @@ def test_a_gated_residual_acts_only_in_the_base_controllers_rise(tmp_path):
     with pytest.raises(ValueError, match="base controller 'zero' has no residual_gate"):
         TrainingRun(tmp_path / "zero", "ppo", TrainEnvConfig(num_envs=2, robot="g1", randomize=False,
                     families=("flat",), base_controller="zero", residual_gate=True), total_steps=48)
+
+
+def test_rise_starts_begin_where_the_gate_opened_with_the_controller_in_its_rise(tmp_path, monkeypatch):
+    from frbench.policies.scripted_humanoid import CROUCH, HumanoidScriptedPolicy
+    from frbench.training.env import RecoveryTrainingEnv
+
+    # a gate that opens at the first step, so that a 3-step recording fills the bank with every environment
+    monkeypatch.setattr(HumanoidScriptedPolicy, "residual_gate", lambda self: np.ones(self.num_envs))
+    cfg = TrainEnvConfig(num_envs=3, robot="g1", randomize=False, families=("flat",), episode_steps=3, settle_steps=2,
+                         base_controller="keyframe-humanoid", residual_gate=True, rise_start_fraction=1.0,
+                         action_scale=0.1)
+    env = RecoveryTrainingEnv(cfg)
+    assert len(env.rise_bank) == 3  # each environment once, at the step its gate first opened
+    assert env.from_demo.all() and (env.controller.phase == CROUCH).all()
+    recorded_q = np.concatenate([state.q for state, _, _ in env.rise_bank])
+    assert {tuple(np.round(q, 9)) for q in env.state.q} <= {tuple(np.round(q, 9)) for q in recorded_q}
+    starts = {tuple(np.round(env.controller._clip(t), 9)) for _, _, t in env.rise_bank}
+    assert {tuple(np.round(s, 9)) for s in env.controller.start} <= starts  # the ramp starts at recorded targets
+    for _ in range(3):
+        env.step(torch.zeros(3, 29))
+    assert env.last_episode_stats["demo_start_share"] == 1.0 and "success_demo_starts" in env.last_episode_stats
+    with pytest.raises(ValueError, match="rise_start_fraction needs residual_gate"):
+        RecoveryTrainingEnv(TrainEnvConfig(num_envs=2, robot="g1", randomize=False, families=("flat",),
+                                           base_controller="keyframe-humanoid", rise_start_fraction=0.5))

@@ -46,6 +46,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--gate-residual", action="store_true",
                    help="add the residual only where the base controller opens its gate (keyframe-humanoid and "
                         "scripted-humanoid: crouch, rise, hold)")
+    p.add_argument("--rise-starts", type=float, default=0.0, metavar="FRACTION",
+                   help="with --gate-residual: start this fraction of episodes where the base controller's gate "
+                        "opened in a recorded run (the key frames' crouch), so that they exercise the rise")
     p.add_argument("--motion-penalties", type=float, default=None, metavar="SCALE",
                    help="joint velocity/acceleration/torque penalties at SCALE x the paper's weights (new runs: "
                         "default 0.1; with --resume: a new reward stage from the run's current step)")
@@ -146,6 +149,8 @@ def run(args) -> int:
             raise FrbenchError(f"--demo-starts {args.demo_starts}: expected a fraction in [0, 1]")
         if not 0.0 <= args.assist_force <= 2.0:
             raise FrbenchError(f"--assist-force {args.assist_force}: expected a fraction of the weight in [0, 2]")
+        if not 0.0 <= args.rise_starts <= 1.0 or (args.rise_starts and not args.gate_residual):
+            raise FrbenchError(f"--rise-starts {args.rise_starts}: expected a fraction in [0, 1], with --gate-residual")
         if args.gate_residual and not args.base_controller:
             raise FrbenchError("--gate-residual needs --base-controller (the gate is the base controller's)")
         if args.action_scale is not None and args.action_scale <= 0:
@@ -172,7 +177,7 @@ def run(args) -> int:
             randomize=not args.no_randomize,
             reward=reward, morphology_ranges=ranges, seed=args.seed, demo_start_fraction=args.demo_starts,
             base_controller=args.base_controller, base_controller_parameters=controller_parameters,
-            residual_gate=args.gate_residual,
+            residual_gate=args.gate_residual, rise_start_fraction=args.rise_starts,
             demo_start_until=args.demo_until if args.demo_until is not None else args.steps / 2,
             assist_force=args.assist_force,
             assist_until=args.assist_until if args.assist_until is not None else args.steps / 2,

@@ -269,6 +269,18 @@ class HumanoidScriptedPolicy:
         `RESIDUAL_PHASES`), else 0.0 (the motion before the rise stays the controller's alone)."""
         return np.isin(self.phase, RESIDUAL_PHASES).astype(float)
 
+    def enter_gate(self, ids: np.ndarray, targets: np.ndarray, joint_pos: np.ndarray) -> None:
+        """Put environments ``ids`` at the start of the first gated phase (``CROUCH``), ramping from ``targets``
+        (len(ids), J) [rad] (the targets this controller had when its gate opened in a recorded run) — for
+        episodes that start where the rise begins. ``joint_pos`` (N, J) [rad]: every environment's measured
+        angles, the other environments' starting targets if no `act` has run yet."""
+        if self.target is None:  # as the first act() would: every environment starts from its measured angles
+            self.target = self._clip(np.asarray(joint_pos, dtype=float).copy())
+            self.start = self.target.copy()
+        for i, target in zip(np.asarray(ids, dtype=int), np.asarray(targets, dtype=float)):
+            self.target[i] = self._clip(target)
+            self._enter(i, RESIDUAL_PHASES[0])
+
     # ------------------------------------------------------------ the machine
     def _enter(self, i: int, phase: int, goal: np.ndarray | None = None) -> None:
         self.phase[i] = phase

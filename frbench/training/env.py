@@ -190,6 +190,10 @@ class TrainEnvConfig:
     #: Gated residual: q* = base(o) + gate·action_scale·a with the base controller's ``residual_gate()`` (N,)
     #: (``keyframe-humanoid``: 1 in its rise, 0 before), so exploration cannot break the motion before the rise.
     residual_gate: bool = False
+    #: With a gated residual: this fraction of episodes starts where the base controller opened its gate in a
+    #: recorded run from fresh fallen starts (the key frames' crouch), the controller in that phase, so that
+    #: every such episode exercises the rise (0: off). Logged success rates count fresh fallen starts only.
+    rise_start_fraction: float = 0.0
 
 
 def _yaw(quat: np.ndarray) -> np.ndarray:
@@ -265,6 +269,8 @@ class RecoveryTrainingEnv(VecEnv):
             self.controller = load_base_controller(self.cfg_obj.base_controller, self.cfg_obj.base_controller_parameters)
             if self.cfg_obj.residual_gate and not hasattr(self.controller, "residual_gate"):
                 raise ValueError(f"residual_gate: base controller {self.cfg_obj.base_controller!r} has no residual_gate()")
+            if self.cfg_obj.rise_start_fraction > 0.0 and not self.cfg_obj.residual_gate:
+                raise ValueError("rise_start_fraction needs residual_gate (the rise starts where the gate opens)")
             if not self.controller.supports(self.spec):
                 raise ValueError(f"base_controller {self.cfg_obj.base_controller!r} does not support {self.spec.name!r}")
 
@@ -336,9 +342,54 @@ class RecoveryTrainingEnv(VecEnv):
         self.action_prev = self.action.copy()  # a_{t-1} while self.action is a_t; both zero at a fresh start
         if self.controller is not None:
             self.controller.reset(self.spec, self.num_envs)
+        if cfg.rise_start_fraction > 0.0:
+            self._rise_starts(cfg.rise_start_fraction)
         o_t = self._o_t()
         self.history = np.repeat(o_t[:, None, :], cfg.history, axis=1)
         self.long_history = np.repeat(o_t[:, None, :], cfg.long_history, axis=1) if cfg.long_history else None
+
+    def _record_rise_bank(self) -> list[tuple[RobotState, int, np.ndarray]]:
+        """Run a fresh copy of the base controller from fresh fallen starts for one episode; the state (one row),
+        tile and controller targets (J,) [rad] of every environment at the step its gate first opened."""
+        from frbench.policies.registry import load_base_controller
+
+        self._fresh_starts()
+        controller = load_base_controller(self.cfg_obj.base_controller, self.cfg_obj.base_controller_parameters)
+        controller.reset(self.spec, self.num_envs)
+        bank, opened = [], np.zeros(self.num_envs, dtype=bool)
+        state = self.backend.state()
+        for _ in range(self.cfg_obj.episode_steps):
+            self.backend.step(np.asarray(controller.act(proprioception(state, self.default_pose))))
+            state = self.backend.state()
+            new = (controller.residual_gate() > 0) & ~opened & ~self.backend.diverged
+            bank += [(state.take([i]), int(self.tile_row[i]), controller.target[i].copy()) for i in np.flatnonzero(new)]
+            opened |= new
+        return bank
+
+    def _rise_starts(self, fraction: float) -> None:
+        """Replace a ``fraction`` of the fresh starts by recorded gate-opening states (`_record_rise_bank`,
+        re-recorded every ``demo_refresh_episodes`` episodes), the base controller put in its gated phase."""
+        cfg = self.cfg_obj
+        if getattr(self, "rise_bank", None) is None or self._episodes_since_rise >= cfg.demo_refresh_episodes:
+            self.rise_bank, self._episodes_since_rise = self._record_rise_bank(), 0
+            self._fresh_starts()
+            self.controller.reset(self.spec, self.num_envs)
+        self._episodes_since_rise += 1
+        drawn = (self.rng.random(self.num_envs) < fraction) & ~self.from_demo
+        ids = np.flatnonzero(drawn) if self.rise_bank else np.zeros(0, int)
+        if not len(ids):
+            return
+        picks = self.rng.integers(0, len(self.rise_bank), size=len(ids))
+        rows = [self.rise_bank[k][0] for k in picks]
+        state = RobotState(**{f: np.concatenate([getattr(r, f) for r in rows]) for f in
+                              ("base_pos", "base_quat", "base_linvel", "base_angvel", "q", "qd")})
+        self.backend.reset(ids, state)
+        self.tile_row[ids] = [self.rise_bank[k][1] for k in picks]
+        self.state, self.contacts = self.backend.state(), self.backend.contacts()
+        self.init_xy = self.state.base_pos[:, :2].copy()
+        self.qd_prev = self.state.qd.copy()
+        self.from_demo[ids] = True
+        self.controller.enter_gate(ids, np.stack([self.rise_bank[k][2] for k in picks]), self.state.q)
 
     def _base_targets(self) -> np.ndarray:
         """q̊ (J,), or the base controller's targets (N, J) [rad] for the current state (residual policies)."""
