@@ -20,10 +20,10 @@ for backs and sides → ``PUSH_A`` → ``PUSH_B`` → ``LIFT`` → ``PIKE`` → 
   and θ_ref moving from ``ref_crouch`` to ``ref_stand`` with the rise.
 
 The shipped parameters are in ``keyframe_humanoid_params.json`` next to this
-module, with the commands that found them; its roll parameters are the
-scripted controller's (a roll search found faster rolls that the rest of the
-motion could not use; docs/results.md, "G1") (CMA-ES, 4 prone starts: g1/flat/
-level 1 seed:episode 0:4, 1:0, 2:8, 3:3, the first two also in the grid below).
+module, with the commands that found them (CMA-ES, 4 prone starts: g1/flat/
+level 1 seed:episode 0:4, 1:0, 2:8, 3:3, the first two also in the grid below). Its roll parameters are the
+scripted controller's: a roll search found faster rolls that the rest of the
+motion could not use (docs/results.md, "G1").
 
 Status (flat ground, measured): ``frbench evaluate --policy keyframe-humanoid
 --robots g1 --terrains flat --levels 1 --seeds 0,1 --episodes 8 --jobs 1``:

@@ -228,6 +228,8 @@ class RecoveryTrainingEnv(VecEnv):
         self.env_steps = 0  # env steps taken so far (N per control step); the run restores it on --resume
         self.demo_bank = None
         self._episodes_since_demo = 0
+        self.rise_bank = None  # gate-opening states (`_record_rise_bank`), with --rise-starts
+        self._episodes_since_rise = 0
         self.from_demo = np.zeros(n, dtype=bool)
         self._reset_all()
 
@@ -326,6 +328,10 @@ class RecoveryTrainingEnv(VecEnv):
                                                 cfg.demo_steps, cfg.demo_stride)
             self._episodes_since_demo = 0
         self._episodes_since_demo += 1
+        stale = self.rise_bank is None or self._episodes_since_rise >= cfg.demo_refresh_episodes
+        if cfg.rise_start_fraction > 0.0 and stale:
+            self.rise_bank, self._episodes_since_rise = self._record_rise_bank(), 0
+        self._episodes_since_rise += 1
         self._fresh_starts()
         self.from_demo = (self.rng.random(self.num_envs) < fraction) & (
             self.demo_bank.valid if self.demo_bank is not None else False)
@@ -369,12 +375,6 @@ class RecoveryTrainingEnv(VecEnv):
     def _rise_starts(self, fraction: float) -> None:
         """Replace a ``fraction`` of the fresh starts by recorded gate-opening states (`_record_rise_bank`,
         re-recorded every ``demo_refresh_episodes`` episodes), the base controller put in its gated phase."""
-        cfg = self.cfg_obj
-        if getattr(self, "rise_bank", None) is None or self._episodes_since_rise >= cfg.demo_refresh_episodes:
-            self.rise_bank, self._episodes_since_rise = self._record_rise_bank(), 0
-            self._fresh_starts()
-            self.controller.reset(self.spec, self.num_envs)
-        self._episodes_since_rise += 1
         drawn = (self.rng.random(self.num_envs) < fraction) & ~self.from_demo
         ids = np.flatnonzero(drawn) if self.rise_bank else np.zeros(0, int)
         if not len(ids):
