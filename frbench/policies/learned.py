@@ -41,6 +41,13 @@ def policy_name(method: str, checkpoint: Path) -> str:
     return re.sub(r"[^A-Za-z0-9._-]", "-", name)[:64]
 
 
+def residual_targets(base: np.ndarray, action: np.ndarray, scale: float, controller, gated: bool) -> np.ndarray:
+    """Joint targets (N, J) [rad] of a residual policy: base + scale·a, or base + gate·scale·a with the base
+    controller's ``residual_gate()`` (N,) when ``gated`` — the one rule training and deployment share."""
+    gate = controller.residual_gate()[:, None] if gated else 1.0
+    return base + gate * scale * action
+
+
 class LearnedPolicy:
     """A trained recovery policy (proprioception only), optionally a residual over a base controller."""
 
@@ -128,8 +135,7 @@ class LearnedPolicy:
         if self.base_controller is None:
             return self.default_pose + self.action_scale * self.action
         base = np.asarray(self.base_controller.act(obs))
-        gate = self.base_controller.residual_gate()[:, None] if self.residual_gate else 1.0
-        return base + gate * self.action_scale * self.action
+        return residual_targets(base, self.action, self.action_scale, self.base_controller, self.residual_gate)
 
 
 def load_learned_policy(data: dict, path: Path) -> LearnedPolicy:

@@ -36,6 +36,7 @@ from tensordict import TensorDict
 
 from frbench.backends import make_backend
 from frbench.backends.base import PhysicsParams, RobotState
+from frbench.policies.learned import residual_targets
 from frbench.robots import get_robot, ground_truth
 from frbench.tasks.initial_states import draw_start
 from frbench.tasks.observations import (
@@ -338,13 +339,8 @@ class RecoveryTrainingEnv(VecEnv):
         if self.from_demo.any():
             ids = np.flatnonzero(self.from_demo)
             state, targets, tiles = self.demo_bank.sample(ids, self.rng)
-            self.backend.reset(ids, state)
-            self.tile_row[ids] = tiles
+            self._restart_from(ids, state, tiles)
             self.action[ids] = (targets - self.default_pose) / cfg.action_scale
-            self.state = self.backend.state()
-            self.contacts = self.backend.contacts()
-            self.init_xy = self.state.base_pos[:, :2].copy()
-            self.qd_prev = self.state.qd.copy()  # the first step's joint acceleration starts from the bank state
         self.action_prev = self.action.copy()  # a_{t-1} while self.action is a_t; both zero at a fresh start
         if self.controller is not None:
             self.controller.reset(self.spec, self.num_envs)
@@ -353,6 +349,14 @@ class RecoveryTrainingEnv(VecEnv):
         o_t = self._o_t()
         self.history = np.repeat(o_t[:, None, :], cfg.history, axis=1)
         self.long_history = np.repeat(o_t[:, None, :], cfg.long_history, axis=1) if cfg.long_history else None
+
+    def _restart_from(self, ids: np.ndarray, state: RobotState, tiles) -> None:
+        """Start environments ``ids`` from recorded ``state`` (len(ids) rows) on their recorded ``tiles``."""
+        self.backend.reset(ids, state)
+        self.tile_row[ids] = tiles
+        self.state, self.contacts = self.backend.state(), self.backend.contacts()
+        self.init_xy = self.state.base_pos[:, :2].copy()
+        self.qd_prev = self.state.qd.copy()  # the first step's joint acceleration starts from the recorded state
 
     def _record_rise_bank(self) -> list[tuple[RobotState, int, np.ndarray]]:
         """Run a fresh copy of the base controller from fresh fallen starts for one episode; the state (one row),
@@ -383,19 +387,9 @@ class RecoveryTrainingEnv(VecEnv):
         rows = [self.rise_bank[k][0] for k in picks]
         state = RobotState(**{f: np.concatenate([getattr(r, f) for r in rows]) for f in
                               ("base_pos", "base_quat", "base_linvel", "base_angvel", "q", "qd")})
-        self.backend.reset(ids, state)
-        self.tile_row[ids] = [self.rise_bank[k][1] for k in picks]
-        self.state, self.contacts = self.backend.state(), self.backend.contacts()
-        self.init_xy = self.state.base_pos[:, :2].copy()
-        self.qd_prev = self.state.qd.copy()
+        self._restart_from(ids, state, [self.rise_bank[k][1] for k in picks])
         self.from_demo[ids] = True
         self.controller.enter_gate(ids, np.stack([self.rise_bank[k][2] for k in picks]), self.state.q)
-
-    def _base_targets(self) -> np.ndarray:
-        """q̊ (J,), or the base controller's targets (N, J) [rad] for the current state (residual policies)."""
-        if self.controller is None:
-            return self.default_pose
-        return np.asarray(self.controller.act(proprioception(self.state, self.default_pose)), dtype=np.float64)
 
     def _fresh_starts(self) -> None:
         """Fallen starts on every environment's curriculum tile, settled for ``settle_steps`` on soft gains."""
@@ -507,9 +501,13 @@ class RecoveryTrainingEnv(VecEnv):
         action_prev2, action_prev = self.action_prev, self.action
         self.action_prev = action_prev
         self.action = np.clip(actions.detach().cpu().numpy().astype(np.float64), -10.0, 10.0)
-        base = self._base_targets()
-        gate = self.controller.residual_gate()[:, None] if self.cfg_obj.residual_gate else 1.0
-        targets = np.clip(base + gate * self.cfg_obj.action_scale * self.action, self.lower, self.upper)
+        if self.controller is None:
+            targets = self.default_pose + self.cfg_obj.action_scale * self.action
+        else:
+            base = np.asarray(self.controller.act(proprioception(self.state, self.default_pose)), dtype=np.float64)
+            targets = residual_targets(base, self.action, self.cfg_obj.action_scale, self.controller,
+                                       self.cfg_obj.residual_gate)
+        targets = np.clip(targets, self.lower, self.upper)
         self.qd_prev = self.state.qd
         self.backend.step(targets)
         self.state, self.contacts = self.backend.state(), self.backend.contacts()
