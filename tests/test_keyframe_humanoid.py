@@ -142,3 +142,89 @@ def test_results_carry_the_parameter_files_checksum():
     results = build_results(request, policy, [])
     assert results["policy"]["checkpoint"] == str(PARAMS_FILE)
     assert results["policy"]["sha256"] == hashlib.sha256(PARAMS_FILE.read_bytes()).hexdigest()
+
+
+def test_crouch_states_are_recorded_where_the_gate_opens(tmp_path):
+    from frbench.policies.keyframe_states import MIN_CROUCH_HEIGHT, main, parse_seeds
+
+    assert parse_seeds("4-6,9") == [4, 5, 6, 9]
+    out = tmp_path / "crouch.npz"
+    assert main(["--backend", "mujoco", "--seeds", "7", "--out", str(out)]) == 0
+    states = np.load(out)
+    n = len(states["q"])
+    assert n >= 1 and states["targets"].shape == states["q"].shape == (n, 29)
+    assert (states["base_pos"][:, 2] >= MIN_CROUCH_HEIGHT).all() and (states["seed"] == 7).all()
+    assert ((states["step"] > 0) & (states["step"] < 250)).all()
+    assert np.allclose(np.linalg.norm(states["base_quat"], axis=1), 1.0)
+
+
+def test_parameter_files_from_before_the_balance_gains_load_without_them(tmp_path):
+    from frbench.policies.keyframe_humanoid import ADDED_LATER
+
+    values = {name: float(v) for name, v in zip(PARAMETER_NAMES, INITIAL) if name not in ADDED_LATER}
+    old = tmp_path / "old.json"
+    old.write_text(json.dumps({"parameters": values}))
+    loaded = load_parameters(old)
+    assert np.allclose(loaded, INITIAL)
+    assert all(loaded[PARAMETER_NAMES.index(n)] == 0.0 for n in ADDED_LATER if n != "fb.com_ref")  # gains off
+    del values["ramp.rise"]
+    old.write_text(json.dumps({"parameters": values}))
+    with pytest.raises(ValueError, match=r"old\.json: missing parameters \['ramp\.rise'\]"):
+        load_parameters(old)
+
+
+def test_the_centre_of_mass_feedback_acts_only_while_rising_and_with_a_gain():
+    spec = get_robot("g1")
+    gains = INITIAL.copy()
+    gains[PARAMETER_NAMES.index("fb.kc_ankle")] = 1.0  # rad/m
+    plain, balanced = KeyframeHumanoidPolicy(INITIAL), KeyframeHumanoidPolicy(gains)
+    lean = 0.2
+    obs = _obs(spec, [(np.sin(lean), 0.0, -np.cos(lean))] * 2, q=np.tile(spec.default_pose, (2, 1)))
+    for policy in (plain, balanced):
+        policy.reset(spec, 2)
+        policy.act(obs)
+    assert np.allclose(plain.act(obs), balanced.act(obs))  # in LIE: no feedback
+    from frbench.policies.scripted_humanoid import HOLD
+
+    for policy in (plain, balanced):
+        policy.phase[:] = HOLD
+    ankle = spec.joint_names.index("left_ankle_pitch_joint")
+    hip = spec.joint_names.index("left_hip_pitch_joint")
+    difference = balanced.act(obs) - plain.act(obs)
+    offset = balanced.balance.offset(obs["projected_gravity"][:1], obs["joint_pos"][:1])[0]
+    assert offset > 0.1  # leaning forward: the CoM is ahead of the feet
+    # the ankle target moves by the gain times the error; the hips have no CoM gain
+    assert np.isclose(difference[0, ankle], 1.0 * (offset - INITIAL[PARAMETER_NAMES.index("fb.com_ref")]))
+    assert difference[0, hip] == 0.0
+
+
+def test_an_up_after_the_deadline_does_not_count():
+    t = np.arange(150)[:, None]
+    heights = np.hstack([np.where(t > 30, 0.8, 0.3), np.where(t > 60, 0.8, 0.3)])  # up at step 31 / 61, stays
+    gravity_z, success = np.full_like(heights, -1.0), np.array([True, True])
+    assert upright_success(heights, gravity_z, success, 0.7, 0.5).tolist() == [True, True]
+    assert upright_success(heights, gravity_z, success, 0.7, 0.5, deadline=45).tolist() == [True, False]
+    early, late = episode_scores(heights, gravity_z, success, 0.7, 0.5, deadline=45)
+    assert early > 150 and late < 20
+
+
+def test_a_pooled_rise_search_scores_the_mean_over_backends():
+    from frbench.policies.keyframe_search import PooledEvaluator
+
+    class Fake:
+        def __init__(self, score, n):
+            self.kinds, self.score, self.n, self.closed = ["recorded"] * n, score, n, False
+
+        def run(self, parameters):
+            k = len(parameters)
+            return np.full(k, self.score), np.ones((k, self.n), bool), np.full((k, self.n), self.score / 100)
+
+        def close(self):
+            self.closed = True
+
+    parts = [Fake(10.0, 2), Fake(40.0, 3)]
+    pooled = PooledEvaluator(parts)
+    scores, successes, heights = pooled.run(np.zeros((4, len(INITIAL))))
+    assert np.allclose(scores, 25.0) and successes.shape == heights.shape == (4, 5) and len(pooled.kinds) == 5
+    pooled.close()
+    assert all(p.closed for p in parts)

@@ -53,6 +53,8 @@ from pathlib import Path
 
 import numpy as np
 
+from frbench.backends.base import CONTROL_DT
+from frbench.policies.balance import ComOverFeet
 from frbench.policies.scripted_humanoid import (
     CROUCH,
     CROUCH_POSE,
@@ -141,7 +143,15 @@ PARAMETERS = (
     ("roll_b_up.shoulder_pitch", -1.6, 0.4, -3.0, 2.5),
     ("roll_b_up.shoulder_roll", 0.0, 0.3, -1.5, 2.0),
     ("ramp.roll", 30, 8, 5, 60),
+    ("fb.kc_ankle", 0.0, 2.0, -15.0, 15.0),
+    ("fb.kcd_ankle", 0.0, 0.3, -3.0, 3.0),
+    ("fb.kc_hip", 0.0, 2.0, -15.0, 15.0),
+    ("fb.kcd_hip", 0.0, 0.3, -3.0, 3.0),
+    ("fb.com_ref", 0.03, 0.03, -0.1, 0.15),
 )
+#: Parameters added after parameter files were written, each with an initial value that leaves the motion as it
+#: was (zero gains): a file without them loads with those values.
+ADDED_LATER = ("fb.kc_ankle", "fb.kcd_ankle", "fb.kc_hip", "fb.kcd_hip", "fb.com_ref")
 PARAMETER_NAMES = tuple(p[0] for p in PARAMETERS)
 INITIAL = np.array([p[1] for p in PARAMETERS], dtype=float)
 SCALE = np.array([p[2] for p in PARAMETERS], dtype=float)
@@ -165,16 +175,20 @@ def decode(x: np.ndarray) -> np.ndarray:
     return np.clip(INITIAL + SCALE * np.asarray(x, dtype=float), LOWER, UPPER)
 
 
+def parameter_vector(values: dict[str, float], source: str) -> np.ndarray:
+    """(D,) parameters from ``values`` (name → value); names in `ADDED_LATER` may be missing (their neutral
+    initial value), any other missing name is an error naming ``source``."""
+    missing = set(PARAMETER_NAMES) - set(values) - set(ADDED_LATER)
+    if missing:
+        raise ValueError(f"{source}: missing parameters {sorted(missing)}")
+    return np.array([float(values.get(name, INITIAL[i])) for i, name in enumerate(PARAMETER_NAMES)])
+
+
 def load_parameters(path: Path | str | None = None) -> np.ndarray:
     """The parameter vector stored in ``path`` (default `PARAMS_FILE`; a JSON object with
     ``"parameters": {name: value}``)."""
     path = PARAMS_FILE if path is None else path
-    data = json.loads(Path(path).read_text())
-    values = data["parameters"]
-    missing = set(PARAMETER_NAMES) - set(values)
-    if missing:
-        raise ValueError(f"{path}: missing parameters {sorted(missing)}")
-    return np.array([float(values[name]) for name in PARAMETER_NAMES])
+    return parameter_vector(json.loads(Path(path).read_text())["parameters"], str(path))
 
 
 class KeyframeHumanoidPolicy(HumanoidScriptedPolicy):
@@ -199,10 +213,7 @@ class KeyframeHumanoidPolicy(HumanoidScriptedPolicy):
     @classmethod
     def from_parameter_dict(cls, values: dict[str, float]) -> KeyframeHumanoidPolicy:
         """The controller with the parameters ``values`` (name → value, as `parameter_dict` writes them)."""
-        missing = set(PARAMETER_NAMES) - set(values)
-        if missing:
-            raise ValueError(f"keyframe-humanoid parameters: missing {sorted(missing)}")
-        return cls(np.array([float(values[name]) for name in PARAMETER_NAMES]))
+        return cls(parameter_vector(values, "keyframe-humanoid parameters"))
 
     def _value(self, row: np.ndarray, name: str) -> float:
         return float(row[PARAMETER_NAMES.index(name)])
@@ -243,6 +254,25 @@ class KeyframeHumanoidPolicy(HumanoidScriptedPolicy):
         self.fb = {n: np.array(rows[:, PARAMETER_NAMES.index(n)]) for n in PARAMETER_NAMES if n.startswith("fb.")}
         self.hip_ids = [self.index[f"{s}_hip_pitch_joint"] for s in ("left", "right")]
         self.ankle_ids = [self.index[f"{s}_ankle_pitch_joint"] for s in ("left", "right")]
+        self.spec = spec
+        self.balance = None  # `ComOverFeet`, built on the first step that needs it
+        self.previous_com = np.full(num_envs, np.nan)  # last step's CoM error [m] (NaN: feedback was off)
+
+    def _com_error(self, active: np.ndarray, gravity: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """CoM offset ahead of the feet minus ``fb.com_ref`` [m] and its rate [m/s] (finite difference over one
+        control step; 0 on the first active step), (N,) each, computed only where ``active`` and a CoM gain is
+        non-zero (else 0)."""
+        error, rate = np.zeros(self.num_envs), np.zeros(self.num_envs)
+        gains = np.abs(np.stack([self.fb[f"fb.{k}"] for k in ("kc_ankle", "kcd_ankle", "kc_hip", "kcd_hip")]))
+        ids = np.flatnonzero(active & (gains.sum(axis=0) > 0))
+        if len(ids):
+            if self.balance is None:
+                self.balance = ComOverFeet(self.spec)
+            error[ids] = self.balance.offset(gravity[ids], q[ids]) - self.fb["fb.com_ref"][ids]
+            had = ids[np.isfinite(self.previous_com[ids])]
+            rate[had] = (error[had] - self.previous_com[had]) / CONTROL_DT
+        self.previous_com = np.where(active, error, np.nan)
+        return error, rate
 
     def _enter(self, i: int, phase: int, goal: np.ndarray | None = None) -> None:
         super()._enter(i, phase, self.env_poses[phase][i] if goal is None else goal)
@@ -258,9 +288,12 @@ class KeyframeHumanoidPolicy(HumanoidScriptedPolicy):
         ref = self.fb["fb.ref_crouch"] + w * (self.fb["fb.ref_stand"] - self.fb["fb.ref_crouch"])
         error = pitch - ref
         active = np.isin(self.phase, FEEDBACK_PHASES) & (g[:, 2] < FEEDBACK_MAX_GZ)
-        hip = np.clip(self.fb["fb.kp_hip"] * error + self.fb["fb.kd_hip"] * rate, -FEEDBACK_LIMIT, FEEDBACK_LIMIT)
-        ankle = np.clip(self.fb["fb.kp_ankle"] * error + self.fb["fb.kd_ankle"] * rate, -FEEDBACK_LIMIT,
-                        FEEDBACK_LIMIT)
+        com, com_rate = self._com_error(active, g, np.asarray(obs["joint_pos"], dtype=float))
+        hip = self.fb["fb.kp_hip"] * error + self.fb["fb.kd_hip"] * rate
+        hip += self.fb["fb.kc_hip"] * com + self.fb["fb.kcd_hip"] * com_rate
+        ankle = self.fb["fb.kp_ankle"] * error + self.fb["fb.kd_ankle"] * rate
+        ankle += self.fb["fb.kc_ankle"] * com + self.fb["fb.kcd_ankle"] * com_rate
+        hip, ankle = (np.clip(v, -FEEDBACK_LIMIT, FEEDBACK_LIMIT) for v in (hip, ankle))
         targets[:, self.hip_ids] += np.where(active, hip, 0.0)[:, None]
         targets[:, self.ankle_ids] += np.where(active, ankle, 0.0)[:, None]
         return self._clip(targets)

@@ -51,14 +51,15 @@ JUMP_HEIGHT = 0.85
 JUMP_PENALTY = 60.0
 
 
-def episode_scores(heights: np.ndarray, gravity_z: np.ndarray, success: np.ndarray, up: float, floor: float) -> np.ndarray:
+def episode_scores(heights: np.ndarray, gravity_z: np.ndarray, success: np.ndarray, up: float, floor: float,
+                   deadline: int | None = None) -> np.ndarray:
     """Shaped score per episode (higher is better) from pelvis heights (T, N) above the ground and the projected
     gravity z (T, N) (−1 upright; the pelvis counts as upright below `UPRIGHT_GZ`).
 
     The task's humanoid test reads the pelvis height only, which a head or hand stand (pelvis upside down,
     0.53-0.8 m) also passes; the score counts a step as up only with the pelvis upright. Up: the first step the
     pelvis is upright above ``up``, at least `MIN_UP_STEPS` before the end (so that a tumble that happens to be
-    upright in the last steps does not count). 100 if the task's ``success`` holds and the pelvis stays upright above
+    upright in the last steps does not count) and, with a ``deadline`` [control steps], before it. 100 if the task's ``success`` holds and the pelvis stays upright above
     ``floor`` from up to the end; + 20 once up plus 30 × the fraction of the remaining episode it then stayed
     upright above ``floor``; + 10 × the highest height × max(−g_z, 0) / ``up`` (capped at 1); + 5 × the fraction of
     steps upright above ``floor``; − `JUMP_PENALTY` × the max height above `JUMP_HEIGHT` (a get-up by jumping
@@ -70,8 +71,9 @@ def episode_scores(heights: np.ndarray, gravity_z: np.ndarray, success: np.ndarr
     top_upright = (heights * np.clip(-gravity_z, 0.0, 1.0)).max(axis=0)
     score = 10.0 * np.minimum(top_upright / up, 1.0) + 5.0 * good.mean(axis=0)
     score -= JUMP_PENALTY * np.maximum(heights.max(axis=0) - JUMP_HEIGHT, 0.0)
+    last = steps - MIN_UP_STEPS if deadline is None else min(steps - MIN_UP_STEPS, deadline)
     for i in range(n):
-        ups = np.flatnonzero((heights[:steps - MIN_UP_STEPS, i] > up) & upright[:steps - MIN_UP_STEPS, i])
+        ups = np.flatnonzero((heights[:last, i] > up) & upright[:last, i])
         if not ups.size:
             continue
         after = good[ups[0]:, i]
@@ -80,12 +82,13 @@ def episode_scores(heights: np.ndarray, gravity_z: np.ndarray, success: np.ndarr
     return score
 
 
-def upright_success(heights: np.ndarray, gravity_z: np.ndarray, success: np.ndarray, up: float, floor: float):
+def upright_success(heights: np.ndarray, gravity_z: np.ndarray, success: np.ndarray, up: float, floor: float,
+                    deadline: int | None = None):
     """(N,) the task's success with the pelvis upright from the first upright step above ``up`` (at least
-    `MIN_UP_STEPS` before the end) to the end."""
+    `MIN_UP_STEPS` before the end and before ``deadline`` if given) to the end."""
     upright = gravity_z < UPRIGHT_GZ
     out = np.zeros(heights.shape[1], dtype=bool)
-    last = heights.shape[0] - MIN_UP_STEPS
+    last = heights.shape[0] - MIN_UP_STEPS if deadline is None else min(heights.shape[0] - MIN_UP_STEPS, deadline)
     for i in np.flatnonzero(success):
         ups = np.flatnonzero((heights[:last, i] > up) & upright[:last, i])
         out[i] = bool(ups.size) and bool(((heights[ups[0]:, i] > floor) & upright[ups[0]:, i]).all())
@@ -161,9 +164,10 @@ class Evaluator:
         self.task.close()
 
 
-def _scored_rollout(task, policy, obs: dict, steps: int, shape: tuple[int, int]):
+def _scored_rollout(task, policy, obs: dict, steps: int, shape: tuple[int, int], deadline: int | None = None):
     """Run ``policy`` for ``steps`` control steps of ``task`` from ``obs``; (mean score per candidate
-    (popsize,), upright successes and max pelvis heights [m], both ``shape`` = (popsize, n_starts))."""
+    (popsize,), upright successes and max pelvis heights [m], both ``shape`` = (popsize, n_starts)); ``deadline``:
+    see `episode_scores`."""
     n = shape[0] * shape[1]
     heights, gravity_z = np.empty((steps, n)), np.zeros((steps, n))
     for t in range(steps):
@@ -171,7 +175,7 @@ def _scored_rollout(task, policy, obs: dict, steps: int, shape: tuple[int, int])
         heights[t], gravity_z[t] = task.signals.height, task.signals.gravity_z
     tracker = task.success
     args = (heights, gravity_z, tracker.success, tracker.up_height, tracker.floor_height)
-    scores, good = episode_scores(*args), upright_success(*args)
+    scores, good = episode_scores(*args, deadline=deadline), upright_success(*args, deadline=deadline)
     return scores.reshape(shape).mean(axis=1), good.reshape(shape), heights.max(axis=0).reshape(shape)
 
 
@@ -200,25 +204,29 @@ RISE_PARAMETERS = tuple(n for n in PARAMETER_NAMES
 class RiseEvaluator:
     """Runs candidates from recorded mid-recovery states (a ``.npz`` of `RobotState` fields, e.g. folded on
     hands and feet at the end of ``SQUAT``) with the controller entering ``CROUCH``: the rise alone, at full
-    gains and without the settle, for ``steps`` control steps, with the task's success test."""
+    gains and without the settle, for ``steps`` control steps, with the task's success test; ``deadline``
+    [control steps]: an up after it does not count (`episode_scores`)."""
 
-    def __init__(self, states_file: str, popsize: int, steps: int = 150, backend: str = "mujoco"):
+    def __init__(self, states_file: str, popsize: int, steps: int = 150, backend: str = "mujoco",
+                 deadline: int | None = None):
         from frbench.backends.base import PhysicsParams, RobotState
         from frbench.robots import get_robot
         from frbench.terrains import make_terrain
 
         self.spec = get_robot("g1")
         data = np.load(states_file)
-        self.popsize, self.n_starts, self.steps = popsize, len(data["q"]), steps
+        self.popsize, self.n_starts, self.steps, self.deadline = popsize, len(data["q"]), steps, deadline
         n = popsize * self.n_starts
         self.state = RobotState(**{k: np.tile(data[k], (popsize, 1)) for k in
                                    ("base_pos", "base_quat", "base_linvel", "base_angvel", "q", "qd")})
+        #: The controller's targets when the state was recorded (J,) per state, if the file has them (else the
+        #: measured angles): the crouch then ramps from where the recorded run's targets were.
+        self.targets = np.tile(data["targets"], (popsize, 1)) if "targets" in data else self.state.q
         self.task = RecoveryTask(self.spec, backend, make_terrain("flat", 1, 0), n)
         self.nominal = PhysicsParams.nominal(self.spec, n)
         self.kinds = ["recorded"] * self.n_starts
 
     def run(self, parameters: np.ndarray):
-        from frbench.policies.scripted_humanoid import CROUCH
         from frbench.tasks.success import SuccessTracker
 
         task, n = self.task, self.popsize * self.n_starts
@@ -236,14 +244,38 @@ class RiseEvaluator:
         obs = task.observation()
         policy = KeyframeHumanoidPolicy(rows)
         policy.reset(self.spec, n)
-        policy.target = policy._clip(task.state.q.copy())
-        policy.start = policy.target.copy()
-        for i in range(n):
-            policy._enter(i, CROUCH)
-        return _scored_rollout(task, policy, obs, self.steps, (self.popsize, self.n_starts))
+        policy.enter_gate(np.arange(n), self.targets, task.state.q)
+        return _scored_rollout(task, policy, obs, self.steps, (self.popsize, self.n_starts), self.deadline)
 
     def close(self) -> None:
         self.task.close()
+
+
+class PooledEvaluator:
+    """Several evaluators (e.g. `RiseEvaluator` in MuJoCo and in PyBullet) as one: a candidate's score is the mean
+    of its scores in each, its successes and heights are theirs side by side."""
+
+    def __init__(self, evaluators: list):
+        self.evaluators = evaluators
+        self.kinds = [kind for e in evaluators for kind in e.kinds]
+
+    def run(self, parameters: np.ndarray):
+        results = [e.run(parameters) for e in self.evaluators]
+        return (np.mean([r[0] for r in results], axis=0), np.concatenate([r[1] for r in results], axis=1),
+                np.concatenate([r[2] for r in results], axis=1))
+
+    def close(self) -> None:
+        for e in self.evaluators:
+            e.close()
+
+
+def rise_evaluator(states: list[str], popsize: int, steps: int, deadline: int | None):
+    """The rise stage's evaluator for ``--states`` values ``FILE`` (MuJoCo) or ``BACKEND:FILE``, pooled if several."""
+    evaluators = []
+    for item in states:
+        backend, _, path = item.rpartition(":") if item.startswith(("mujoco:", "pybullet:")) else ("", "", item)
+        evaluators.append(RiseEvaluator(path, popsize, steps, backend=backend or "mujoco", deadline=deadline))
+    return evaluators[0] if len(evaluators) == 1 else PooledEvaluator(evaluators)
 
 
 def save(path: Path, parameters: np.ndarray, info: dict) -> None:
@@ -269,8 +301,13 @@ def main(argv: list[str] | None = None) -> int:
                              "onto the belly (2.4 s) from --starts")
     parser.add_argument("--roll-seeds", default=None,
                         help="roll stage: instead of --starts, every non-prone start of these seeds (e.g. 4-9)")
-    parser.add_argument("--states", default=None, help="rise stage: .npz of recorded states")
+    parser.add_argument("--states", action="append", default=None,
+                        help="rise stage: .npz of recorded states (`keyframe_states`), as FILE (MuJoCo) or "
+                             "BACKEND:FILE; repeat to score the mean over several backends")
     parser.add_argument("--steps", type=int, default=150, help="rise stage: control steps per episode")
+    parser.add_argument("--deadline", type=int, default=None,
+                        help="rise stage: an up after this many control steps does not count (the crouch starts "
+                             "about 58 steps before a 5 s episode ends)")
     args = parser.parse_args(argv)
     import cma
 
@@ -288,7 +325,9 @@ def main(argv: list[str] | None = None) -> int:
     tuned = np.arange(len(INITIAL))
     if args.stage == "rise":
         tuned = np.array([PARAMETER_NAMES.index(n) for n in RISE_PARAMETERS])
-        evaluator = RiseEvaluator(args.states, args.popsize, args.steps)
+        if not args.states:
+            parser.error("--stage rise needs --states")
+        evaluator = rise_evaluator(args.states, args.popsize, args.steps, args.deadline)
     elif args.stage == "roll":
         tuned = np.array([PARAMETER_NAMES.index(n) for n in ROLL_PARAMETERS])
         evaluator = Evaluator(starts, args.popsize, roll=True)

@@ -45,6 +45,7 @@ from frbench.tasks.observations import (
     proprioception,
     rotate_to_body,
 )
+from frbench.tasks.recovery import EPISODE_STEPS
 from frbench.tasks.success import StepSignals, SuccessTracker
 from frbench.terrains import FAMILIES
 from frbench.training.curriculum import TerrainCurriculum
@@ -359,8 +360,10 @@ class RecoveryTrainingEnv(VecEnv):
         self.qd_prev = self.state.qd.copy()  # the first step's joint acceleration starts from the recorded state
 
     def _record_rise_bank(self) -> list[tuple[RobotState, int, np.ndarray]]:
-        """Run a fresh copy of the base controller from fresh fallen starts for one episode; the state (one row),
-        tile and controller targets (J,) [rad] of every environment at the step its gate first opened."""
+        """Run a fresh copy of the base controller from fresh fallen starts for one evaluation episode
+        (`EPISODE_STEPS`, whatever the training episode length: the gate openings an evaluation can see); the
+        state (one row), tile and controller targets (J,) [rad] of every environment at the step its gate first
+        opened."""
         from frbench.policies.registry import load_base_controller
 
         self._fresh_starts()
@@ -368,7 +371,7 @@ class RecoveryTrainingEnv(VecEnv):
         controller.reset(self.spec, self.num_envs)
         bank, opened = [], np.zeros(self.num_envs, dtype=bool)
         state = self.backend.state()
-        for _ in range(self.cfg_obj.episode_steps):
+        for _ in range(EPISODE_STEPS):
             self.backend.step(np.asarray(controller.act(proprioception(state, self.default_pose))))
             state = self.backend.state()
             new = (controller.residual_gate() > 0) & ~opened & ~self.backend.diverged
