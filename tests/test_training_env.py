@@ -373,11 +373,16 @@ def test_train_command_records_the_settle_and_the_base_controller_parameters(tmp
     out = tmp_path / "g1"
     assert main(["train", "--method", "ppo", "--robots", "g1", "--terrains", "flat", "--envs", "2", "--steps", "48",
                  "--episode-steps", "3", "--settle-steps", "4", "--base-controller", "keyframe-humanoid",
-                 "--action-scale", "0.1", "--no-randomize", "--out", str(out)]) == 0
-    env = json.loads((out / "config.json").read_text())["env"]
+                 "--action-scale", "0.1", "--init-std", "0.2", "--no-randomize", "--out", str(out)]) == 0
+    config = json.loads((out / "config.json").read_text())
+    env = config["env"]
+    assert config["train_cfg"]["actor"]["distribution_cfg"]["init_std"] == 0.2
+    policy = torch.load(out / "policy.pt", weights_only=True)
+    assert json.loads(policy["config_json"])["train_cfg"]["actor"]["distribution_cfg"]["init_std"] == 0.2
     assert env["settle_steps"] == 4 and env["episode_steps"] == 3
     assert env["base_controller_parameters"] == base_controller_parameters("keyframe-humanoid")
     assert main(["train", "--robots", "g1", "--settle-steps", "-1", "--out", str(tmp_path / "bad")]) == 2
+    assert main(["train", "--robots", "g1", "--init-std", "0", "--out", str(tmp_path / "bad")]) == 2
     assert main(["train", "--robots", "g1", "--base-controller", "keyframe-humanoid", "--rise-starts", "0.5",
                  "--out", str(tmp_path / "bad")]) == 2  # rise starts need the gate
     assert not (tmp_path / "bad").exists()

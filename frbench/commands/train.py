@@ -57,6 +57,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--morphology-range", action="append", default=[], metavar="FIELD=LOW,HIGH",
                    help="replace one row of the paper's morphology table, e.g. calf_width=0.016,0.040 [m] "
                         "(repeatable; with --resume: part of a new stage, the robots are redrawn)")
+    p.add_argument("--init-std", type=float, default=None, metavar="STD",
+                   help="initial std of the Gaussian actions (default 0.5; a residual over a balancing controller "
+                        "wants less exploration)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--checkpoint-every", type=int, default=20, help="iterations between checkpoints")
     p.add_argument("--out", type=Path, default=None, help="run folder (default runs/<method>)")
@@ -153,6 +156,8 @@ def run(args) -> int:
             raise FrbenchError(f"--rise-starts {args.rise_starts}: expected a fraction in [0, 1], with --gate-residual")
         if args.gate_residual and not args.base_controller:
             raise FrbenchError("--gate-residual needs --base-controller (the gate is the base controller's)")
+        if args.init_std is not None and args.init_std <= 0:
+            raise FrbenchError(f"--init-std {args.init_std}: expected a positive standard deviation")
         if args.action_scale is not None and args.action_scale <= 0:
             raise FrbenchError(f"--action-scale {args.action_scale}: expected a positive number")
         controller_parameters = {}
@@ -184,8 +189,9 @@ def run(args) -> int:
             **({"action_scale": args.action_scale} if args.action_scale is not None else {}),
         )
         out = args.out or Path("runs") / args.method
+        overrides = None if args.init_std is None else {"actor": {"distribution_cfg": {"init_std": args.init_std}}}
         run_ = TrainingRun(out, args.method, env_cfg, int(args.steps), args.checkpoint_every, command,
-                           teacher=args.teacher)
+                           teacher=args.teacher, train_overrides=overrides)
     run_.train()
     print(f"trained {run_.env_steps / 1e6:.2f}M env steps in {run_.wall / 60:.1f} min; policy at {run_.out / 'policy.pt'}")
     return 0

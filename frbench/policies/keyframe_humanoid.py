@@ -17,7 +17,11 @@ for backs and sides → ``PUSH_A`` → ``PUSH_B`` → ``LIFT`` → ``PIKE`` → 
   to both hip-pitch and ankle-pitch targets:
   ``k_p (θ − θ_ref) + k_d ω_y``, with θ = atan2(g_x, −g_z) the pelvis pitch
   (nose down positive) from the projected gravity, ω_y the base pitch rate
-  and θ_ref moving from ``ref_crouch`` to ``ref_stand`` with the rise.
+  and θ_ref moving from ``ref_crouch`` to ``ref_stand`` with the rise;
+* in the same phases a centre-of-mass feedback is added to the same joints:
+  ``k_c (c − c_ref) + k_cd ċ`` (``fb.kc_*``, ``fb.kcd_*``, ``fb.com_ref``), with c the CoM's offset ahead of
+  the feet estimated from the projected gravity and the joint angles (`frbench.policies.balance.ComOverFeet`,
+  Pinocchio) and ċ its finite difference. Its gains are zero in parameter files written before it existed.
 
 The shipped parameters are in ``keyframe_humanoid_params.json`` next to this
 module, with the commands that found them (CMA-ES, 4 prone starts: g1/flat/

@@ -121,7 +121,8 @@ class TrainingRun:
 
     def __init__(self, out: Path, method: str | None = None, env_cfg=None, total_steps: int | None = None,
                  checkpoint_every: int = 20, command: str = "", resume: bool = False, teacher: Path | None = None,
-                 reward_stage: dict[str, float] | None = None, morphology_stage: dict | None = None):
+                 reward_stage: dict[str, float] | None = None, morphology_stage: dict | None = None,
+                 train_overrides: dict | None = None):
         """``method="rma-adaptation"`` is RMA's phase 2: ``teacher`` is a finished ``rma`` run folder whose
         policy is frozen while the adaptation module learns; its env config is reused (with a 50-frame
         long history), ``env_cfg`` is ignored.
@@ -130,7 +131,9 @@ class TrainingRun:
         current env step (e.g. the motion penalties at the paper's weights once the policy gets up). The
         changes and ``command`` are appended to ``config["stages"]``, so the checkpoint says which reward
         trained which steps. ``morphology_stage`` (with ``resume``), field → (low, high), likewise replaces rows
-        of the morphology table: the run's robots are redrawn from the new table."""
+        of the morphology table: the run's robots are redrawn from the new table. ``train_overrides`` (new runs)
+        are merged into the method's rsl-rl config (e.g. ``{"actor": {"distribution_cfg": {"init_std": 0.2}}}``)
+        and saved with it."""
         import torch
 
         from frbench.training.env import RecoveryTrainingEnv
@@ -154,7 +157,7 @@ class TrainingRun:
             if method == ADAPTATION_METHOD:
                 env_cfg, train_cfg = _adaptation_setup(teacher)
             else:
-                train_cfg = make_train_cfg(method)
+                train_cfg = make_train_cfg(method, train_overrides)
             config = {"method": method, "env": _env_cfg_to_dict(env_cfg), "train_cfg": train_cfg,
                       "total_steps": total_steps, "command": command}
             if teacher is not None:
