@@ -1,4 +1,4 @@
-"""Black-box search of the ``keyframe-humanoid`` parameters in MuJoCo (CMA-ES, optional extra ``tune``).
+"""Black-box search of the ``keyframe-humanoid`` parameters (CMA-ES, optional extra ``tune``).
 
 Every generation runs ``popsize × len(starts)`` real recovery episodes side by
 side in one batched MuJoCo `RecoveryTask` (one candidate per simulation, the
@@ -7,11 +7,15 @@ by `episode_scores` averaged over its starts, and writes the best parameters
 found so far to ``--out`` (JSON, the same format as the shipped
 ``keyframe_humanoid_params.json``) after every generation. ``--stage rise``
 tunes only the ``CROUCH``/``RISE``/feedback parameters from recorded states
-(``--states``: an ``.npz`` of `RobotState` fields, e.g. squats spawned and
-settled at full gains). The last run behind the shipped parameters:
+(``--states``: an ``.npz`` of `RobotState` fields and the controller's targets,
+as `frbench.policies.keyframe_states` writes them; ``BACKEND:FILE`` runs them in
+that simulator, and several ``--states`` score the mean over simulators;
+``--deadline`` bounds when the robot must be up). The last run behind the
+shipped parameters:
 
-    .venv/bin/python -m frbench.policies.keyframe_search --starts 0:4,1:0,2:8,3:3 \
-        --init full3.json --popsize 12 --sigma 0.4 --generations 400 --max-minutes 17 --seed 8 \
+    .venv/bin/python -m frbench.policies.keyframe_search --stage rise \
+        --states mujoco:mj24.npz --states pybullet:pb24.npz --steps 150 --deadline 48 \
+        --init riseE.json --popsize 10 --sigma 0.35 --max-minutes 25 --seed 36 \
         --out keyframe_humanoid_params.json
 """
 
