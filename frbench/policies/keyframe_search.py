@@ -37,6 +37,7 @@ from frbench.policies.keyframe_humanoid import (
     KeyframeHumanoidPolicy,
     decode,
 )
+from frbench.policies.keyframe_states import STATE_FIELDS, parse_seeds
 from frbench.tasks.initial_states import FallenStarts, draw_starts
 from frbench.tasks.recovery import EPISODE_STEPS, RecoveryTask
 
@@ -221,8 +222,7 @@ class RiseEvaluator:
         data = np.load(states_file)
         self.popsize, self.n_starts, self.steps, self.deadline = popsize, len(data["q"]), steps, deadline
         n = popsize * self.n_starts
-        self.state = RobotState(**{k: np.tile(data[k], (popsize, 1)) for k in
-                                   ("base_pos", "base_quat", "base_linvel", "base_angvel", "q", "qd")})
+        self.state = RobotState(**{k: np.tile(data[k], (popsize, 1)) for k in STATE_FIELDS})
         #: The controller's targets when the state was recorded (J,) per state, if the file has them (else the
         #: measured angles): the crouch then ramps from where the recorded run's targets were.
         self.targets = np.tile(data["targets"], (popsize, 1)) if "targets" in data else self.state.q
@@ -319,8 +319,7 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.out)
     starts = parse_starts(args.starts)
     if args.roll_seeds:
-        low, _, high = args.roll_seeds.partition("-")
-        starts = non_prone_starts(range(int(low), int(high or low) + 1))
+        starts = non_prone_starts(parse_seeds(args.roll_seeds))
     base = INITIAL.copy()
     if args.init:
         from frbench.policies.keyframe_humanoid import load_parameters
