@@ -21,6 +21,7 @@ from frbench.policies.keyframe_search import (
     episode_scores,
     non_prone_starts,
     roll_scores,
+    starts_of_kind,
     upright_success,
 )
 from frbench.policies.registry import load_policy
@@ -102,6 +103,27 @@ def test_roll_score_prefers_an_early_roll_that_stays_face_down():
 def test_roll_starts_are_the_non_prone_ones():
     starts = non_prone_starts([4], episodes=8)
     assert (4, 1) not in starts and len(starts) == 7  # seed 4 episode 1 is the only prone start of the eight
+
+
+def test_prone_starts_are_the_rest():
+    assert starts_of_kind([4], prone=True, episodes=8) == [(4, 1)]
+
+
+def test_a_prone_stage_search_tunes_only_the_way_into_the_crouch_in_both_backends(tmp_path):
+    """Two generations of two candidates, 5 control steps in MuJoCo and PyBullet from one prone start: the file
+    it writes keeps every parameter outside `PRONE_PARAMETERS` at ``--init`` and names both backends' starts."""
+    from frbench.policies.keyframe_search import PRONE_PARAMETERS, main
+
+    assert len(PRONE_PARAMETERS) == 30 and "ramp.lift" in PRONE_PARAMETERS and "ramp.rise" not in PRONE_PARAMETERS
+    assert not any(n.startswith(("roll", "fb.", "stand.")) for n in PRONE_PARAMETERS)
+    out = tmp_path / "prone.json"
+    main(["--stage", "prone", "--prone-seeds", "4", "--backends", "mujoco,pybullet", "--steps", "5",
+          "--deadline", "3", "--popsize", "2", "--generations", "2", "--sigma", "0.5", "--init", str(PARAMS_FILE),
+          "--out", str(out)])
+    found, init = json.loads(out.read_text()), json.loads(PARAMS_FILE.read_text())["parameters"]
+    assert len(found["successes"]) == 2 and not any(found["successes"])  # one start per backend, 5 steps: down
+    changed = {n for n in PARAMETER_NAMES if abs(found["parameters"][n] - init[n]) > 1e-6}
+    assert changed and changed <= set(PRONE_PARAMETERS)
 
 
 def test_shaped_score_ranks_upright_success_first():

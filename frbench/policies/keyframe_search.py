@@ -1,7 +1,7 @@
 """Black-box search of the ``keyframe-humanoid`` parameters (CMA-ES, optional extra ``tune``).
 
 Every generation runs ``popsize × len(starts)`` real recovery episodes side by
-side in one batched MuJoCo `RecoveryTask` (one candidate per simulation, the
+side in one batched `RecoveryTask` per simulator (one candidate per simulation, the
 task's own drawn starts, its settle, its success test), scores each candidate
 by `episode_scores` averaged over its starts, and writes the best parameters
 found so far to ``--out`` (JSON, the same format as the shipped
@@ -10,8 +10,11 @@ tunes only the ``CROUCH``/``RISE``/feedback parameters from recorded states
 (``--states``: an ``.npz`` of `RobotState` fields and the controller's targets,
 as `frbench.policies.keyframe_states` writes them; ``BACKEND:FILE`` runs them in
 that simulator, and several ``--states`` score the mean over simulators;
-``--deadline`` bounds when the robot must be up). The last run behind the
-shipped parameters:
+``--deadline`` bounds when the robot must be up). ``--stage prone`` tunes only the
+way from the belly into the crouch (`PRONE_PARAMETERS`) on whole episodes from
+prone starts (``--prone-seeds``), ``--stage roll`` only the roll (``--roll-seeds``);
+``--backends mujoco,pybullet`` runs those stages in both simulators and scores
+the mean. The last run behind the shipped parameters:
 
     .venv/bin/python -m frbench.policies.keyframe_search --stage rise \
         --states mujoco:mj24.npz --states pybullet:pb24.npz --steps 150 --deadline 48 \
@@ -119,23 +122,31 @@ def roll_scores(phases: np.ndarray, gravity_x: np.ndarray) -> np.ndarray:
     return 2.0 * reached + reached * (1.0 - first / steps) + 0.5 * down.max(axis=0) + 0.5 * down[-1]
 
 
-def non_prone_starts(seeds, episodes: int = 8) -> list[tuple[int, int]]:
-    """(seed, episode) of every g1/flat/level-1 start in ``seeds`` that is not prone (the ones that roll)."""
+def starts_of_kind(seeds, prone: bool, episodes: int = 8) -> list[tuple[int, int]]:
+    """(seed, episode) of every g1/flat/level-1 start in ``seeds`` that is prone (``prone=True``) or is not
+    (the ones that roll)."""
     from frbench.robots import get_robot
     from frbench.terrains import make_terrain
 
     spec, out = get_robot("g1"), []
     for seed in seeds:
         kinds = draw_starts(spec, make_terrain("flat", 1, seed), "flat", 1, seed, range(episodes)).kinds
-        out += [(seed, e) for e, kind in enumerate(kinds) if kind != "prone"]
+        out += [(seed, e) for e, kind in enumerate(kinds) if (kind == "prone") == prone]
     return out
 
 
-class Evaluator:
-    """Runs candidates from fixed g1/flat/level-1 starts in one batched MuJoCo task (whole episodes, scored by
-    `episode_scores`; ``roll=True``: `ROLL_EPISODE_STEPS` scored by `roll_scores`)."""
+def non_prone_starts(seeds, episodes: int = 8) -> list[tuple[int, int]]:
+    """(seed, episode) of every g1/flat/level-1 start in ``seeds`` that is not prone (the ones that roll)."""
+    return starts_of_kind(seeds, prone=False, episodes=episodes)
 
-    def __init__(self, starts: list[tuple[int, int]], popsize: int, backend: str = "mujoco", roll: bool = False):
+
+class Evaluator:
+    """Runs candidates from fixed g1/flat/level-1 starts in one batched task of ``backend`` (episodes of ``steps``
+    control steps, default a whole episode, scored by `episode_scores` with ``deadline``; ``roll=True``:
+    `ROLL_EPISODE_STEPS` scored by `roll_scores`)."""
+
+    def __init__(self, starts: list[tuple[int, int]], popsize: int, backend: str = "mujoco", roll: bool = False,
+                 steps: int = EPISODE_STEPS, deadline: int | None = None):
         from frbench.robots import get_robot
         from frbench.terrains import make_terrain
 
@@ -151,7 +162,7 @@ class Evaluator:
             kinds=self.kinds * popsize,
         )
         self.task = RecoveryTask(self.spec, backend, make_terrain("flat", 1, starts[0][0]), popsize * len(starts))
-        self.roll = roll
+        self.roll, self.steps, self.deadline = roll, steps, deadline
 
     def run(self, parameters: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(scores (popsize,), successes (popsize, n_starts), max heights (popsize, n_starts)) of candidate
@@ -163,7 +174,7 @@ class Evaluator:
         shape = (self.popsize, self.n_starts)
         if self.roll:
             return _roll_rollout(self.task, policy, obs, ROLL_EPISODE_STEPS, shape)
-        return _scored_rollout(self.task, policy, obs, EPISODE_STEPS, shape)
+        return _scored_rollout(self.task, policy, obs, self.steps, shape, self.deadline)
 
     def close(self) -> None:
         self.task.close()
@@ -201,6 +212,10 @@ def _roll_rollout(task, policy, obs: dict, steps: int, shape: tuple[int, int]):
 
 #: Parameters tuned by ``--stage roll`` (the others stay at ``--init``).
 ROLL_PARAMETERS = tuple(n for n in PARAMETER_NAMES if n.startswith(("roll", "ramp.roll", "ramp.lie")))
+#: Parameters tuned by ``--stage prone`` (the way from the belly into the crouch: key poses and ramps of
+#: ``PUSH_B`` … ``CROUCH``; the roll, the rise and the feedback stay at ``--init``).
+PRONE_PARAMETERS = tuple(n for n in PARAMETER_NAMES if n.startswith(("push_b.", "lift.", "pike.", "squat.", "crouch."))
+                         or n in ("ramp.push_b", "ramp.lift", "ramp.pike", "ramp.squat", "ramp.crouch"))
 #: Parameters tuned by ``--stage rise`` (the others stay at ``--init``).
 RISE_PARAMETERS = tuple(n for n in PARAMETER_NAMES
                         if n.startswith(("crouch.", "stand.", "fb.")) or n in ("ramp.crouch", "ramp.rise"))
@@ -273,13 +288,18 @@ class PooledEvaluator:
             e.close()
 
 
+def pooled(evaluators: list):
+    """One evaluator alone, several as a `PooledEvaluator`."""
+    return evaluators[0] if len(evaluators) == 1 else PooledEvaluator(evaluators)
+
+
 def rise_evaluator(states: list[str], popsize: int, steps: int, deadline: int | None):
     """The rise stage's evaluator for ``--states`` values ``FILE`` (MuJoCo) or ``BACKEND:FILE``, pooled if several."""
     evaluators = []
     for item in states:
         backend, _, path = item.rpartition(":") if item.startswith(("mujoco:", "pybullet:")) else ("", "", item)
         evaluators.append(RiseEvaluator(path, popsize, steps, backend=backend or "mujoco", deadline=deadline))
-    return evaluators[0] if len(evaluators) == 1 else PooledEvaluator(evaluators)
+    return pooled(evaluators)
 
 
 def save(path: Path, parameters: np.ndarray, info: dict) -> None:
@@ -300,18 +320,24 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--init", default=None, help="start from the parameters of this JSON file")
     parser.add_argument("--out", required=True)
     parser.add_argument("--max-minutes", type=float, default=60.0)
-    parser.add_argument("--stage", choices=("full", "rise", "roll"), default="full",
-                        help="full: whole episodes from --starts; rise: only the rise from --states; roll: the roll "
+    parser.add_argument("--stage", choices=("full", "prone", "rise", "roll"), default="full",
+                        help="full: whole episodes from --starts; prone: the same, tuning only the way from the belly "
+                             "into the crouch (PRONE_PARAMETERS); rise: only the rise from --states; roll: the roll "
                              "onto the belly (2.4 s) from --starts")
     parser.add_argument("--roll-seeds", default=None,
-                        help="roll stage: instead of --starts, every non-prone start of these seeds (e.g. 4-9)")
+                        help="instead of --starts, every non-prone start of these seeds (e.g. 4-9)")
+    parser.add_argument("--prone-seeds", default=None,
+                        help="instead of --starts, every prone start of these seeds (e.g. 4-15)")
+    parser.add_argument("--backends", default="mujoco",
+                        help="full, prone and roll stages: comma-separated simulators; the score is the mean over them")
     parser.add_argument("--states", action="append", default=None,
                         help="rise stage: .npz of recorded states (`keyframe_states`), as FILE (MuJoCo) or "
                              "BACKEND:FILE; repeat to score the mean over several backends")
-    parser.add_argument("--steps", type=int, default=150, help="rise stage: control steps per episode")
+    parser.add_argument("--steps", type=int, default=None,
+                        help="control steps per episode (rise stage: default 150; full and prone: a whole episode)")
     parser.add_argument("--deadline", type=int, default=None,
-                        help="rise stage: an up after this many control steps does not count (the crouch starts "
-                             "about 58 steps before a 5 s episode ends)")
+                        help="an up after this many control steps does not count (rise stage: the crouch starts "
+                             "about 58 steps before a 5 s episode ends; full and prone: leaves time for a roll)")
     args = parser.parse_args(argv)
     import cma
 
@@ -320,6 +346,9 @@ def main(argv: list[str] | None = None) -> int:
     starts = parse_starts(args.starts)
     if args.roll_seeds:
         starts = non_prone_starts(parse_seeds(args.roll_seeds))
+    if args.prone_seeds:
+        starts = starts_of_kind(parse_seeds(args.prone_seeds), prone=True)
+    backends = args.backends.split(",")
     base = INITIAL.copy()
     if args.init:
         from frbench.policies.keyframe_humanoid import load_parameters
@@ -330,12 +359,13 @@ def main(argv: list[str] | None = None) -> int:
         tuned = np.array([PARAMETER_NAMES.index(n) for n in RISE_PARAMETERS])
         if not args.states:
             parser.error("--stage rise needs --states")
-        evaluator = rise_evaluator(args.states, args.popsize, args.steps, args.deadline)
-    elif args.stage == "roll":
-        tuned = np.array([PARAMETER_NAMES.index(n) for n in ROLL_PARAMETERS])
-        evaluator = Evaluator(starts, args.popsize, roll=True)
+        evaluator = rise_evaluator(args.states, args.popsize, args.steps or 150, args.deadline)
     else:
-        evaluator = Evaluator(starts, args.popsize)
+        subset = {"roll": ROLL_PARAMETERS, "prone": PRONE_PARAMETERS}.get(args.stage, PARAMETER_NAMES)
+        tuned = np.array([PARAMETER_NAMES.index(n) for n in subset])
+        evaluator = pooled([Evaluator(starts, args.popsize, backend, roll=args.stage == "roll",
+                                      steps=args.steps or EPISODE_STEPS, deadline=args.deadline)
+                            for backend in backends])
     x0 = ((base - INITIAL) / SCALE)[tuned]
 
     def full(xs: np.ndarray) -> np.ndarray:
