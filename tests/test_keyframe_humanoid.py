@@ -230,6 +230,18 @@ def test_an_up_after_the_deadline_does_not_count():
     assert early > 150 and late < 20
 
 
+def test_late_ups_earn_less_the_later_they_are():
+    t = np.arange(150)[:, None]
+    ups = (40, 50, 60, 70, 100)  # deadline 45, late window 30: in time, 6, 16 and 26 steps late, too late
+    heights = np.hstack([np.where(t >= u, 0.8, 0.3) for u in ups])
+    gravity_z, success = np.full_like(heights, -1.0), np.ones(len(ups), bool)
+    scores = episode_scores(heights, gravity_z, success, 0.7, 0.5, deadline=45, late=30)
+    base = episode_scores(heights, gravity_z, success, 0.7, 0.5, deadline=45)
+    assert scores[0] == pytest.approx(base[0]) and base[0] > 150  # in time: unchanged, with the success bonus
+    assert scores[1:4] - base[1:4] == pytest.approx([50 * (1 - 6 / 31), 50 * (1 - 16 / 31), 50 * (1 - 26 / 31)])
+    assert scores[4] == pytest.approx(base[4])  # after the window: no up credit
+
+
 def test_a_pooled_rise_search_scores_the_mean_over_backends():
     from frbench.policies.keyframe_search import PooledEvaluator
 
