@@ -151,6 +151,16 @@ def test_a_prone_start_gets_up_in_mujoco():
     assert record["success"] and not record["diverged"]
 
 
+@pytest.mark.slow
+def test_a_supine_start_rolls_over_and_gets_up_in_mujoco():
+    from frbench.evaluation.runner import Cell, run_cell
+
+    # seed 3, episode 6 of g1/flat/level 5 is a supine start (held out from the grid's seeds 0-1)
+    record = run_cell(Cell("g1", "mujoco", "flat", 5, 3, 7), "keyframe-humanoid")[6]
+    assert record["initial_pose"] == "supine"
+    assert record["success"] and not record["diverged"] and record["time_to_recover"] < 5.0
+
+
 def test_results_carry_the_parameter_files_checksum():
     import hashlib
 

@@ -24,23 +24,26 @@ for backs and sides → ``PUSH_A`` → ``PUSH_B`` → ``LIFT`` → ``PIKE`` → 
   Pinocchio) and ċ its finite difference. Its gains are zero in parameter files written before it existed.
 
 The shipped parameters are in ``keyframe_humanoid_params.json`` next to this
-module, with the commands that found them (CMA-ES, 4 prone starts: g1/flat/
-level 1 seed:episode 0:4, 1:0, 2:8, 3:3, the first two also in the grid below). Its roll parameters are the
-scripted controller's: a roll search found faster rolls that the rest of the
-motion could not use (docs/results.md, "G1").
+module, with the commands that found them (CMA-ES; the first searches from 4 prone starts: g1/flat/
+level 1 seed:episode 0:4, 1:0, 2:8, 3:3, the first two also in the grid below).
 
 Status (measured; docs/results.md, "G1"): ``frbench evaluate --policy keyframe-humanoid --robots g1
---terrains flat,slopes,rough,stairs --levels 1,5,10 --seeds 0,1 --episodes 8 --jobs 1``: 13/384 episodes
-(MuJoCo 9, PyBullet 4), all on flat ground and level-1 slopes, all up at 4.62-4.92 s. The crouch, rise and
-feedback parameters come from a session-6 search from recorded crouch states in both simulators
-(``rise_note`` in the parameter file): from held-out crouch states the rise succeeds within the 58 steps
-an episode leaves in 10/22 (MuJoCo) and 45/54 (PyBullet), and is still up after 3 s in 1/22 and 27/54.
+--terrains flat,slopes,rough,stairs --levels 1,5,10 --seeds 0,1 --episodes 8 --jobs 2``: 17/384 episodes
+(MuJoCo 10, PyBullet 7), all on flat ground and level-1 slopes, all up at 4.52-4.60 s; supine starts 0/62
+there (2 supine successes on seeds 2-3). Crouch, rise and feedback parameters: a session-6 search from
+recorded crouch states in both simulators (``rise_note``); from held-out crouch states the rise succeeds
+within the 58 steps an episode leaves in 10/22 (MuJoCo) and 45/54 (PyBullet). Roll and belly-to-crouch
+parameters: session-7 searches in both simulators (``search``): held-out non-prone starts face down and
+pushing up after 2.4 s 8/22 and 7/22 (before 3/22, 6/22); 47 of the grid's 48 flat MuJoCo starts reach
+the push-up within 5 s (25 before), but the motion from the push-up into the crouch still takes ≈ 174
+control steps (3.5 s), so only starts that are on the belly within ≈ 0.6 s can be up by 5 s.
+
 The motion the session-4 search found from the belly is not the intended squat rise: the pike tips over
 into a head stand (pelvis upside down at 0.53 m), the robot rolls forward out of it onto its feet into a
 crouch (pelvis about 0.37 m) and rises to about 0.8 m; with the session-4 rise it then mostly fell
 backwards within 0.5 s. Prone starts that roll onto the back during ``LIE``
-or ``PUSH_*`` (MuJoCo seed 0 episode 4, PyBullet seed 1 episode 0) go into the
-scripted ``ROLL``, which stalls. The task's humanoid test reads the pelvis
+or ``PUSH_*`` (MuJoCo seed 0 episode 4, PyBullet seed 1 episode 0) go into ``ROLL`` (which
+stalled there before session 7's roll search). The task's humanoid test reads the pelvis
 height only: an earlier search with a height-only objective found a hand /
 head stand (pelvis upside down above 0.7 m, then at 0.53 m) that passed it on
 3 of 4 prone starts; the search objective therefore counts only upright
