@@ -35,7 +35,7 @@ recorded crouch states in both simulators (``rise_note``); from held-out crouch 
 within the 58 steps an episode leaves in 10/22 (MuJoCo) and 45/54 (PyBullet). Roll and belly-to-crouch
 parameters: session-7 searches in both simulators (``search``): held-out non-prone starts face down and
 pushing up after 2.4 s 8/22 and 7/22 (before 3/22, 6/22); 47 of the grid's 48 flat MuJoCo starts reach
-the push-up within 5 s (25 before), but the motion from the push-up into the crouch still takes ≈ 174
+the push-up within 5 s (26 before), but the motion from the push-up into the crouch still takes ≈ 174
 control steps (3.5 s), so only starts that are on the belly within ≈ 0.6 s can be up by 5 s.
 
 The motion the session-4 search found from the belly is not the intended squat rise: the pike tips over
