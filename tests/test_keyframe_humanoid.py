@@ -106,7 +106,7 @@ def test_roll_starts_are_the_non_prone_ones():
 
 
 def test_prone_starts_are_the_rest():
-    assert starts_of_kind([4], prone=True, episodes=8) == [(4, 1)]
+    assert starts_of_kind([4], ("prone",), episodes=8) == [(4, 1)]
 
 
 def test_a_prone_stage_search_tunes_only_the_way_into_the_crouch_in_both_backends(tmp_path):
@@ -120,10 +120,61 @@ def test_a_prone_stage_search_tunes_only_the_way_into_the_crouch_in_both_backend
     main(["--stage", "prone", "--prone-seeds", "4", "--backends", "mujoco,pybullet", "--steps", "5",
           "--deadline", "3", "--popsize", "2", "--generations", "2", "--sigma", "0.5", "--init", str(PARAMS_FILE),
           "--out", str(out)])
-    found, init = json.loads(out.read_text()), json.loads(PARAMS_FILE.read_text())["parameters"]
+    found, init = json.loads(out.read_text()), dict(zip(PARAMETER_NAMES, load_parameters(PARAMS_FILE)))
     assert len(found["successes"]) == 2 and not any(found["successes"])  # one start per backend, 5 steps: down
     changed = {n for n in PARAMETER_NAMES if abs(found["parameters"][n] - init[n]) > 1e-6}
     assert changed and changed <= set(PRONE_PARAMETERS)
+
+
+def test_sit_up_parameters_set_the_tuck_prop_rock_poses_ramps_and_tries():
+    from frbench.policies.scripted_humanoid import (
+        PROP,
+        ROCK,
+        TUCK,
+        HumanoidScriptedPolicy,
+    )
+
+    spec = get_robot("g1")
+    scripted = HumanoidScriptedPolicy()
+    scripted.reset(spec, 1)
+    tuned = INITIAL.copy()
+    for name, value in (("prop.knee", 1.1), ("ramp.rock", 12), ("situp.tries", 2)):
+        tuned[PARAMETER_NAMES.index(name)] = value
+    policy = KeyframeHumanoidPolicy(np.stack([INITIAL, tuned]))
+    policy.reset(spec, 2)
+    for phase in (TUCK, PROP, ROCK):  # the initial values are the scripted key poses
+        assert np.allclose(policy.env_poses[phase][0], scripted.poses[phase])
+    knees = [spec.joint_names.index(f"{s}_knee_joint") for s in ("left", "right")]
+    assert np.allclose(policy.env_poses[PROP][1][knees], 1.1)
+    assert policy.ramp[1, ROCK] == 12 and policy.ramp[0, ROCK] == 25
+    assert [policy._situp_tries(i) for i in (0, 1)] == [0, 2]
+
+
+def test_a_supine_stage_search_tunes_only_the_sit_up_with_one_try(tmp_path):
+    """Two generations of two candidates, 5 control steps in MuJoCo from the supine starts of seed 4: the file
+    keeps every parameter outside `SUPINE_PARAMETERS` at ``--init`` except ``situp.tries``, which is 1."""
+    from frbench.policies.keyframe_search import SUPINE_PARAMETERS, main
+
+    assert len(SUPINE_PARAMETERS) == 27 and "ramp.tuck" in SUPINE_PARAMETERS and "situp.tries" not in SUPINE_PARAMETERS
+    out = tmp_path / "supine.json"
+    main(["--stage", "supine", "--supine-seeds", "4", "--steps", "5", "--popsize", "2", "--generations", "2",
+          "--init", str(PARAMS_FILE), "--out", str(out)])
+    found, init = json.loads(out.read_text()), load_parameters(PARAMS_FILE)
+    assert found["starts"] == [[4, 0], [4, 5]]  # seed 4's supine starts
+    changed = {n for i, n in enumerate(PARAMETER_NAMES) if abs(found["parameters"][n] - init[i]) > 1e-6}
+    assert changed - {"situp.tries"} and changed <= set(SUPINE_PARAMETERS) | {"situp.tries"}
+    assert found["parameters"]["situp.tries"] == 1
+
+
+def test_extra_parameters_by_name_or_prefix_and_a_clear_error_otherwise():
+    from frbench.policies.keyframe_search import SUPINE_PARAMETERS, extra_parameters
+
+    assert extra_parameters("stand.,ramp.rise", SUPINE_PARAMETERS) == (
+        "stand.hip_pitch", "stand.knee", "stand.ankle_pitch", "ramp.rise")
+    assert extra_parameters("ramp.tuck", SUPINE_PARAMETERS) == ()  # already tuned by the stage
+    for bad in ("stand", "nope.", "situp.tries"):
+        with pytest.raises(SystemExit, match=f"--extra: '{bad}' names no tunable parameter"):
+            extra_parameters(bad, SUPINE_PARAMETERS)
 
 
 def test_shaped_score_ranks_upright_success_first():
@@ -198,7 +249,8 @@ def test_parameter_files_from_before_the_balance_gains_load_without_them(tmp_pat
     old.write_text(json.dumps({"parameters": values}))
     loaded = load_parameters(old)
     assert np.allclose(loaded, INITIAL)
-    assert all(loaded[PARAMETER_NAMES.index(n)] == 0.0 for n in ADDED_LATER if n != "fb.com_ref")  # gains off
+    assert all(loaded[PARAMETER_NAMES.index(n)] == 0.0 for n in ADDED_LATER if n.startswith("fb.k"))  # gains off
+    assert loaded[PARAMETER_NAMES.index("situp.tries")] == 0  # and no sit-up: the file's motion is unchanged
     del values["ramp.rise"]
     old.write_text(json.dumps({"parameters": values}))
     with pytest.raises(ValueError, match=r"old\.json: missing parameters \['ramp\.rise'\]"):

@@ -7,12 +7,17 @@ import pytest
 
 from frbench.policies.registry import load_policy
 from frbench.policies.scripted_humanoid import (
+    CROUCH,
     HOLD,
     LIE,
     PIKE,
+    PROP,
     PUSH_A,
     PUSH_B,
+    RAMP_STEPS,
+    ROCK,
     ROLL,
+    TUCK,
     HumanoidScriptedPolicy,
 )
 from frbench.robots import get_robot
@@ -93,6 +98,46 @@ def test_phase_choice_from_projected_gravity():
     assert policy.phase[0] not in (LIE, ROLL)  # prone: pushing up
     assert list(policy.phase[1:]) == [ROLL, ROLL, ROLL]
     assert policy.direction[2] == 1 and policy.direction[3] == -1  # rolls on over the lower side
+
+
+def _phases_while(policy, spec, gravities: list, steps: int) -> list[list[int]]:
+    """Phases (steps lists of N) while the environments lie with the given projected gravities."""
+    out = []
+    for _ in range(steps):
+        policy.act(_obs(spec, gravities))
+        out.append(policy.phase.tolist())
+    return out
+
+
+def test_a_sit_up_runs_tuck_prop_rock_into_the_crouch_once_then_the_back_rolls():
+    """With one sit-up try, a robot on its back goes LIE → TUCK → PROP → ROCK → CROUCH, each phase after its ramp;
+    still face up in the crouch it falls back to LIE, and the second time it rolls instead."""
+    spec = get_robot("g1")
+    policy = HumanoidScriptedPolicy()
+    policy.situp_tries = 1
+    policy.reset(spec, 1)
+    lie, tuck, prop, rock = (int(RAMP_STEPS[p]) for p in (LIE, TUCK, PROP, ROCK))
+    phases = [row[0] for row in _phases_while(policy, spec, [SUPINE], lie + tuck + prop + rock + 2)]
+    assert phases[lie - 1] == LIE and phases[lie] == TUCK
+    assert phases[lie + tuck] == PROP and phases[lie + tuck + prop] == ROCK
+    assert phases[lie + tuck + prop + rock] == CROUCH
+    assert policy.situps[0] == 1
+    later = [row[0] for row in _phases_while(policy, spec, [SUPINE], lie + 2)]
+    assert LIE in later and later[-1] == ROLL  # the crouch saw the back, LIE, then the one try is used: roll
+
+
+def test_a_sit_up_that_tips_onto_a_side_starts_over_and_none_without_tries():
+    spec = get_robot("g1")
+    policy = HumanoidScriptedPolicy()
+    policy.situp_tries = 1
+    policy.reset(spec, 1)
+    _phases_while(policy, spec, [SUPINE], int(RAMP_STEPS[LIE]) + 3)
+    assert policy.phase[0] == TUCK
+    _phases_while(policy, spec, [LEFT_SIDE], 1)
+    assert policy.phase[0] == LIE
+    default = HumanoidScriptedPolicy()  # the scripted controller itself makes no sit-up
+    default.reset(spec, 1)
+    assert TUCK not in {row[0] for row in _phases_while(default, spec, [SUPINE], 60)}
 
 
 def test_prone_episode_in_mujoco_through_the_evaluator():

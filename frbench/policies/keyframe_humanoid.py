@@ -68,9 +68,13 @@ from frbench.policies.scripted_humanoid import (
     LIFT_POSE,
     PIKE,
     PIKE_POSE,
+    PROP,
+    PROP_POSE,
     PUSH_B,
     PUSH_B_POSE,
     RISE,
+    ROCK,
+    ROCK_POSE,
     ROLL,
     ROLL_B_DOWN_SIDE,
     ROLL_B_UP_SIDE,
@@ -78,6 +82,8 @@ from frbench.policies.scripted_humanoid import (
     ROLL_UP_SIDE,
     SQUAT,
     SQUAT_POSE,
+    TUCK,
+    TUCK_POSE,
     HumanoidScriptedPolicy,
     _smoothstep,
 )
@@ -85,6 +91,12 @@ from frbench.robots.spec import RobotSpec
 
 PARAMS_FILE = Path(__file__).resolve().parent / "keyframe_humanoid_params.json"
 
+#: Sit-up key-pose joints: (joint, search scale, lower, upper bound) [rad].
+SITUP_JOINT_RANGES = (
+    ("hip_pitch", 0.3, -2.45, 0.5), ("hip_roll", 0.2, -0.2, 1.0), ("knee", 0.3, 0.0, 2.8),
+    ("ankle_pitch", 0.3, -0.85, 0.5), ("waist_pitch", 0.2, -0.5, 0.5), ("shoulder_pitch", 0.5, -3.0, 2.6),
+    ("shoulder_roll", 0.3, -0.2, 1.5), ("elbow", 0.4, -1.0, 2.0),
+)
 #: (name, initial value, search scale, lower bound, upper bound). ``<phase>.<joint>`` is a left-side joint angle
 #: [rad] of that phase's key pose; ``ramp.<phase>`` its ramp [control steps]; ``fb.*`` the pitch feedback gains
 #: [rad/rad, rad/(rad/s)] and references [rad].
@@ -152,10 +164,19 @@ PARAMETERS = (
     ("fb.kc_hip", 0.0, 2.0, -15.0, 15.0),
     ("fb.kcd_hip", 0.0, 0.3, -3.0, 3.0),
     ("fb.com_ref", 0.03, 0.03, -0.1, 0.15),
+    *((f"{phase}.{joint}", pose[joint], scale, lower, upper)
+      for phase, pose in (("tuck", TUCK_POSE), ("prop", PROP_POSE), ("rock", ROCK_POSE))
+      for joint, scale, lower, upper in SITUP_JOINT_RANGES),
+    ("ramp.tuck", 20, 6, 5, 60),
+    ("ramp.prop", 25, 6, 5, 60),
+    ("ramp.rock", 25, 6, 5, 60),
+    ("situp.tries", 0, 1, 0, 3),
 )
 #: Parameters added after parameter files were written, each with an initial value that leaves the motion as it
 #: was (zero gains): a file without them loads with those values.
-ADDED_LATER = ("fb.kc_ankle", "fb.kcd_ankle", "fb.kc_hip", "fb.kcd_hip", "fb.com_ref")
+ADDED_LATER = ("fb.kc_ankle", "fb.kcd_ankle", "fb.kc_hip", "fb.kcd_hip", "fb.com_ref") + tuple(
+    p[0] for p in PARAMETERS if p[0].startswith(("tuck.", "prop.", "rock.", "ramp.tuck", "ramp.prop", "ramp.rock",
+                                                 "situp.")))
 PARAMETER_NAMES = tuple(p[0] for p in PARAMETERS)
 INITIAL = np.array([p[1] for p in PARAMETERS], dtype=float)
 SCALE = np.array([p[2] for p in PARAMETERS], dtype=float)
@@ -165,7 +186,8 @@ UPPER = np.array([p[4] for p in PARAMETERS], dtype=float)
 #: Parameter prefix → (phase, the scripted controller's key pose, whose joints it keeps unless a parameter
 #: names them).
 _TUNED_PHASES = {"push_b": (PUSH_B, PUSH_B_POSE), "lift": (LIFT, LIFT_POSE), "pike": (PIKE, PIKE_POSE),
-                 "squat": (SQUAT, SQUAT_POSE), "crouch": (CROUCH, CROUCH_POSE)}
+                 "squat": (SQUAT, SQUAT_POSE), "crouch": (CROUCH, CROUCH_POSE), "tuck": (TUCK, TUCK_POSE),
+                 "prop": (PROP, PROP_POSE), "rock": (ROCK, ROCK_POSE)}
 #: Phases whose targets get the pitch feedback.
 FEEDBACK_PHASES = (CROUCH, RISE, HOLD)
 #: The feedback acts only while the pelvis is upright enough for its pitch to be defined: g_z below this.
@@ -233,6 +255,9 @@ class KeyframeHumanoidPolicy(HumanoidScriptedPolicy):
     def _phase_pose(self, row: np.ndarray, prefix: str, base: dict) -> np.ndarray:
         return self._pose(self._named(row, prefix, base))
 
+    def _situp_tries(self, i: int) -> int:
+        return int(self.env_situp_tries[i])
+
     def _roll_goal(self, i: int, stage: int) -> np.ndarray:
         return self.env_roll[int(self.direction[i]), stage][i]
 
@@ -256,6 +281,7 @@ class KeyframeHumanoidPolicy(HumanoidScriptedPolicy):
                     direction, stage, self._named(row, sides[0], sides[1]), self._named(row, sides[2], sides[3]),
                     self._value(row, "roll.waist_yaw")) for row in rows])
         self.fb = {n: np.array(rows[:, PARAMETER_NAMES.index(n)]) for n in PARAMETER_NAMES if n.startswith("fb.")}
+        self.env_situp_tries = np.rint(rows[:, PARAMETER_NAMES.index("situp.tries")]).astype(int)
         self.hip_ids = [self.index[f"{s}_hip_pitch_joint"] for s in ("left", "right")]
         self.ankle_ids = [self.index[f"{s}_ankle_pitch_joint"] for s in ("left", "right")]
         self.spec = spec

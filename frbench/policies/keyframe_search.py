@@ -41,7 +41,7 @@ from frbench.policies.keyframe_humanoid import (
     decode,
 )
 from frbench.policies.keyframe_states import STATE_FIELDS, parse_seeds
-from frbench.tasks.initial_states import FallenStarts, draw_starts
+from frbench.tasks.initial_states import FALL_KINDS, FallenStarts, draw_starts
 from frbench.tasks.recovery import EPISODE_STEPS, RecoveryTask
 
 
@@ -128,22 +128,22 @@ def roll_scores(phases: np.ndarray, gravity_x: np.ndarray) -> np.ndarray:
     return 2.0 * reached + reached * (1.0 - first / steps) + 0.5 * down.max(axis=0) + 0.5 * down[-1]
 
 
-def starts_of_kind(seeds, prone: bool, episodes: int = 8) -> list[tuple[int, int]]:
-    """(seed, episode) of every g1/flat/level-1 start in ``seeds`` that is prone (``prone=True``) or is not
-    (the ones that roll)."""
+def starts_of_kind(seeds, kinds: tuple[str, ...], episodes: int = 8) -> list[tuple[int, int]]:
+    """(seed, episode) of every g1/flat/level-1 start in ``seeds`` whose drawn kind is in ``kinds`` (names of
+    `frbench.tasks.initial_states.FALL_KINDS`)."""
     from frbench.robots import get_robot
     from frbench.terrains import make_terrain
 
     spec, out = get_robot("g1"), []
     for seed in seeds:
-        kinds = draw_starts(spec, make_terrain("flat", 1, seed), "flat", 1, seed, range(episodes)).kinds
-        out += [(seed, e) for e, kind in enumerate(kinds) if (kind == "prone") == prone]
+        drawn = draw_starts(spec, make_terrain("flat", 1, seed), "flat", 1, seed, range(episodes)).kinds
+        out += [(seed, e) for e, kind in enumerate(drawn) if kind in kinds]
     return out
 
 
 def non_prone_starts(seeds, episodes: int = 8) -> list[tuple[int, int]]:
     """(seed, episode) of every g1/flat/level-1 start in ``seeds`` that is not prone (the ones that roll)."""
-    return starts_of_kind(seeds, prone=False, episodes=episodes)
+    return starts_of_kind(seeds, tuple(k for k in FALL_KINDS if k != "prone"), episodes=episodes)
 
 
 class Evaluator:
@@ -225,6 +225,12 @@ ROLL_PARAMETERS = tuple(n for n in PARAMETER_NAMES if n.startswith(("roll", "ram
 #: ``PUSH_B`` … ``CROUCH``; the roll, the rise and the feedback stay at ``--init``).
 PRONE_PARAMETERS = tuple(n for n in PARAMETER_NAMES if n.startswith(("push_b.", "lift.", "pike.", "squat.", "crouch."))
                          or n in ("ramp.push_b", "ramp.lift", "ramp.pike", "ramp.squat", "ramp.crouch"))
+#: Parameters tuned by ``--stage supine`` (the sit-up from the back: key poses and ramps of ``TUCK``, ``PROP``,
+#: ``ROCK``; the search makes one sit-up attempt, ``situp.tries`` = 1, whatever ``--init`` has).
+SUPINE_PARAMETERS = tuple(n for n in PARAMETER_NAMES if n.startswith(("tuck.", "prop.", "rock."))
+                          or n in ("ramp.tuck", "ramp.prop", "ramp.rock"))
+#: Parameters no stage tunes (counts, not magnitudes).
+FIXED_PARAMETERS = ("situp.tries",)
 #: Parameters tuned by ``--stage rise`` (the others stay at ``--init``).
 RISE_PARAMETERS = tuple(n for n in PARAMETER_NAMES
                         if n.startswith(("crouch.", "stand.", "fb.")) or n in ("ramp.crouch", "ramp.rise"))
@@ -311,6 +317,18 @@ def rise_evaluator(states: list[str], popsize: int, steps: int, deadline: int | 
     return pooled(evaluators)
 
 
+def extra_parameters(text: str, already: tuple[str, ...]) -> tuple[str, ...]:
+    """Parameter names selected by ``--extra`` (comma-separated names, or prefixes ending in '.') not in
+    ``already``; an item that selects none is an error naming it."""
+    out = []
+    for item in filter(None, (t.strip() for t in text.split(","))):
+        hits = [n for n in PARAMETER_NAMES if (n.startswith(item) if item.endswith(".") else n == item)]
+        if not hits or set(hits) & set(FIXED_PARAMETERS):
+            raise SystemExit(f"--extra: {item!r} names no tunable parameter (names: keyframe_humanoid.PARAMETERS)")
+        out += [n for n in hits if n not in already and n not in out]
+    return tuple(out)
+
+
 def save(path: Path, parameters: np.ndarray, info: dict) -> None:
     """Write parameters (D,) by name plus ``info`` to ``path`` as JSON (atomically)."""
     from frbench.io import atomic_write_text
@@ -329,16 +347,22 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--init", default=None, help="start from the parameters of this JSON file")
     parser.add_argument("--out", required=True)
     parser.add_argument("--max-minutes", type=float, default=60.0)
-    parser.add_argument("--stage", choices=("full", "prone", "rise", "roll"), default="full",
+    parser.add_argument("--stage", choices=("full", "prone", "rise", "roll", "supine"), default="full",
                         help="full: whole episodes from --starts; prone: the same, tuning only the way from the belly "
-                             "into the crouch (PRONE_PARAMETERS); rise: only the rise from --states; roll: the roll "
+                             "into the crouch (PRONE_PARAMETERS); supine: the same, tuning only the sit-up from the "
+                             "back (SUPINE_PARAMETERS); rise: only the rise from --states; roll: the roll "
                              "onto the belly (2.4 s) from --starts")
     parser.add_argument("--roll-seeds", default=None,
                         help="instead of --starts, every non-prone start of these seeds (e.g. 4-9)")
     parser.add_argument("--prone-seeds", default=None,
                         help="instead of --starts, every prone start of these seeds (e.g. 4-15)")
+    parser.add_argument("--extra", default="",
+                        help="comma-separated parameter names, or prefixes ending in '.', tuned besides the stage's own "
+                             "(e.g. stand.,ramp.rise)")
+    parser.add_argument("--supine-seeds", default=None,
+                        help="instead of --starts, every supine start of these seeds (e.g. 4-15)")
     parser.add_argument("--backends", default="mujoco",
-                        help="full, prone and roll stages: comma-separated simulators; the score is the mean over them")
+                        help="full, prone, supine and roll stages: comma-separated simulators; the score is the mean over them")
     parser.add_argument("--states", action="append", default=None,
                         help="rise stage: .npz of recorded states (`keyframe_states`), as FILE (MuJoCo) or "
                              "BACKEND:FILE; repeat to score the mean over several backends")
@@ -359,13 +383,17 @@ def main(argv: list[str] | None = None) -> int:
     if args.roll_seeds:
         starts = non_prone_starts(parse_seeds(args.roll_seeds))
     if args.prone_seeds:
-        starts = starts_of_kind(parse_seeds(args.prone_seeds), prone=True)
+        starts = starts_of_kind(parse_seeds(args.prone_seeds), ("prone",))
+    if args.supine_seeds:
+        starts = starts_of_kind(parse_seeds(args.supine_seeds), ("supine",))
     backends = args.backends.split(",")
     base = INITIAL.copy()
     if args.init:
         from frbench.policies.keyframe_humanoid import load_parameters
 
         base = load_parameters(args.init)
+    if args.stage == "supine":
+        base[PARAMETER_NAMES.index("situp.tries")] = max(1, base[PARAMETER_NAMES.index("situp.tries")])
     tuned = np.arange(len(INITIAL))
     if args.stage == "rise":
         tuned = np.array([PARAMETER_NAMES.index(n) for n in RISE_PARAMETERS])
@@ -373,8 +401,9 @@ def main(argv: list[str] | None = None) -> int:
             parser.error("--stage rise needs --states")
         evaluator = rise_evaluator(args.states, args.popsize, args.steps or 150, args.deadline)
     else:
-        subset = {"roll": ROLL_PARAMETERS, "prone": PRONE_PARAMETERS}.get(args.stage, PARAMETER_NAMES)
-        tuned = np.array([PARAMETER_NAMES.index(n) for n in subset])
+        subset = {"roll": ROLL_PARAMETERS, "prone": PRONE_PARAMETERS, "supine": SUPINE_PARAMETERS}.get(
+            args.stage, tuple(n for n in PARAMETER_NAMES if n not in FIXED_PARAMETERS))
+        tuned = np.array([PARAMETER_NAMES.index(n) for n in subset + extra_parameters(args.extra, subset)])
         evaluator = pooled([Evaluator(starts, args.popsize, backend, roll=args.stage == "roll",
                                       steps=args.steps or EPISODE_STEPS, deadline=args.deadline, late=args.late)
                             for backend in backends])

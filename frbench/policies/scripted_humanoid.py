@@ -16,8 +16,15 @@ torso forward, positive hip/shoulder roll moves the left limb outwards.
 Phases:
 
 ``LIE``     legs straight, arms along the body; then choose from g: face
-            down -> ``PUSH_A``; face up or on a side -> ``ROLL``, towards
-            the side that is already lower; upright -> ``CROUCH``.
+            down -> ``PUSH_A``; face up -> ``TUCK`` while sit-up tries
+            (``situp_tries``, 0 here) are left; face up or on a side ->
+            ``ROLL``, towards the side that is already lower; upright ->
+            ``CROUCH``.
+``TUCK``,   the sit-up from the back (`SITUP_PHASES`, each after its ramp):
+``PROP``,   the legs tuck with the feet near the buttocks while the arms press
+``ROCK``    down behind the body; the arms straighten, propping the torso up;
+            the arms swing forward and the hips fold, rocking the body over
+            the feet -> ``CROUCH``. Tipping onto the belly or a side -> ``LIE``.
 ``ROLL``    face up / side -> face down, in two stages. Back -> side: the chest
             twists towards the lower side (waist yaw), the upper arm reaches
             across the chest, the upper leg flexes and crosses over, the lower
@@ -87,15 +94,18 @@ import numpy as np
 
 from frbench.robots.spec import RobotSpec
 
-LIE, ROLL, PUSH_A, PUSH_B, LIFT, PIKE, SQUAT, CROUCH, RISE, HOLD = range(10)
-PHASE_NAMES = ("lie", "roll", "push_a", "push_b", "lift", "pike", "squat", "crouch", "rise", "hold")
+LIE, ROLL, PUSH_A, PUSH_B, LIFT, PIKE, SQUAT, CROUCH, RISE, HOLD, TUCK, PROP, ROCK = range(13)
+PHASE_NAMES = ("lie", "roll", "push_a", "push_b", "lift", "pike", "squat", "crouch", "rise", "hold", "tuck", "prop",
+               "rock")
+#: The sit-up from the back, in order (then ``CROUCH``); used only by controllers with ``situp_tries`` > 0.
+SITUP_PHASES = (TUCK, PROP, ROCK)
 #: Phases in which a gated residual policy may change the targets (`residual_gate`): the rise onto the feet.
 RESIDUAL_PHASES = (CROUCH, RISE, HOLD)
 
 #: Interpolation time [control steps of 0.02 s] from the previous targets to each phase's pose.
-RAMP_STEPS = np.array([10, 30, 10, 20, 35, 40, 45, 30, 40, 1])
+RAMP_STEPS = np.array([10, 30, 10, 20, 35, 40, 45, 30, 40, 1, 20, 25, 25])
 #: Steps [control steps] each phase holds its reached pose before the next phase starts.
-HOLD_STEPS = np.array([0, 0, 0, 5, 0, 0, 5, 5, 0, 0])
+HOLD_STEPS = np.array([0, 0, 0, 5, 0, 0, 5, 5, 0, 0, 0, 0, 0])
 #: Steps [control steps] a roll may last before it is retried the other way.
 ROLL_TIMEOUT = 60
 
@@ -146,6 +156,22 @@ CROUCH_POSE = {
     "hip_pitch": -1.8, "hip_roll": 0.1, "knee": 2.0, "ankle_pitch": -0.8, "waist_pitch": 0.3,
     "shoulder_pitch": -1.0, "shoulder_roll": 0.2, "elbow": 1.5,
 }
+#: Sit-up from the back (`SITUP_PHASES`): the legs tuck (feet flat near the buttocks) while the arms press
+#: down behind the body ...
+TUCK_POSE = {
+    "hip_pitch": -1.5, "hip_roll": 0.2, "knee": 2.4, "ankle_pitch": -0.4, "waist_pitch": 0.3,
+    "shoulder_pitch": 0.8, "shoulder_roll": 0.3, "elbow": 0.3,
+}
+#: ... the arms straighten, propping the torso up on the hands behind it, the hips flex further ...
+PROP_POSE = {
+    "hip_pitch": -1.8, "hip_roll": 0.2, "knee": 2.5, "ankle_pitch": -0.7, "waist_pitch": 0.5,
+    "shoulder_pitch": 1.5, "shoulder_roll": 0.3, "elbow": 1.5,
+}
+#: ... and the arms swing forward while the hips fold fully, rocking the body forward over the feet into a squat.
+ROCK_POSE = {
+    "hip_pitch": -2.3, "hip_roll": 0.2, "knee": 2.6, "ankle_pitch": -0.8, "waist_pitch": 0.5,
+    "shoulder_pitch": -1.5, "shoulder_roll": 0.2, "elbow": 1.5,
+}
 #: Roll towards one side: the arm of the side going down goes overhead, out of the way ...
 ROLL_DOWN_SIDE = {"shoulder_pitch": -2.6, "shoulder_roll": 0.3, "elbow": 1.5}
 #: ... the leg of the side going up flexes and crosses over (hip adducted), its arm reaches across the chest ...
@@ -176,6 +202,8 @@ class HumanoidScriptedPolicy:
 
     name = "scripted-humanoid"
     checkpoint = None
+    #: Sit-up attempts (`SITUP_PHASES`) an episode makes from the back before it rolls onto the belly instead.
+    situp_tries = 0
 
     def supports(self, spec: RobotSpec) -> bool:
         """Humanoids with the Unitree G1's 29 joints (matched by name)."""
@@ -211,6 +239,9 @@ class HumanoidScriptedPolicy:
             CROUCH: self._pose(CROUCH_POSE),
             RISE: self._clip(self.default.copy()),
             HOLD: self._clip(self.default.copy()),
+            TUCK: self._pose(TUCK_POSE),
+            PROP: self._pose(PROP_POSE),
+            ROCK: self._pose(ROCK_POSE),
         }
 
     def key_poses(self) -> dict[str, np.ndarray]:
@@ -245,6 +276,7 @@ class HumanoidScriptedPolicy:
         self.steps = np.zeros(n, dtype=int)  # steps since the phase began
         self.direction = np.zeros(n, dtype=int)  # roll direction, 0 until chosen
         self.roll_stage = np.zeros(n, dtype=int)  # 0: back -> side, 1: side -> belly
+        self.situps = np.zeros(n, dtype=int)  # sit-up attempts begun
         self.goal = np.tile(self.poses[LIE], (n, 1))
         self.ramp = np.tile(RAMP_STEPS, (n, 1))  # per environment and phase
         self.start = None  # targets when the phase began, set on the first act()
@@ -288,6 +320,10 @@ class HumanoidScriptedPolicy:
         self.start[i] = self.target[i]
         self.goal[i] = self.poses[phase] if goal is None else goal
 
+    def _situp_tries(self, i: int) -> int:
+        """Sit-up attempts environment ``i`` makes from the back (subclasses set it per environment)."""
+        return self.situp_tries
+
     def _roll(self, i: int, gy: float) -> None:
         """Start a roll: towards the lower side first, the other way on a retry."""
         if self.direction[i] == 0:
@@ -307,6 +343,9 @@ class HumanoidScriptedPolicy:
         if phase in (PUSH_A, PUSH_B, LIFT, PIKE, SQUAT, CROUCH) and gx < SUPINE_GX:  # tipped onto the back
             self._enter(i, LIE)
             return
+        if phase in SITUP_PHASES and (gx > PRONE_GX or abs(gy) > SIDE_GY):  # tipped onto the belly or a side
+            self._enter(i, LIE)
+            return
         if phase == ROLL:
             if gx > ROLLED_GX:
                 self._enter(i, PUSH_A)
@@ -323,9 +362,14 @@ class HumanoidScriptedPolicy:
                 self._enter(i, PUSH_A)
             elif gz < UPRIGHT_GZ:
                 self._enter(i, CROUCH)
+            elif gx < SUPINE_GX and self.situps[i] < self._situp_tries(i):
+                self.situps[i] += 1
+                self._enter(i, TUCK)
             else:
                 self._roll(i, gy)
         elif phase == RISE:
             self._enter(i, HOLD)
+        elif phase in SITUP_PHASES:
+            self._enter(i, PROP if phase == TUCK else ROCK if phase == PROP else CROUCH)
         elif phase != HOLD:
             self._enter(i, phase + 1)  # PUSH_A -> PUSH_B -> LIFT -> PIKE -> SQUAT -> CROUCH -> RISE
