@@ -150,12 +150,37 @@ def test_sit_up_parameters_set_the_tuck_prop_rock_poses_ramps_and_tries():
     assert [policy._situp_tries(i) for i in (0, 1)] == [0, 2]
 
 
+def test_after_a_sit_up_the_crouch_rise_and_feedback_are_the_sit_up_paths_own():
+    """``sit_*`` parameters act only on an environment whose way to the crouch was a sit-up (entered ``TUCK``);
+    entering ``PUSH_A`` switches it back to the belly path's crouch, stand pose, ramps and feedback."""
+    from frbench.policies.scripted_humanoid import CROUCH, PUSH_A, RISE, TUCK
+
+    spec = get_robot("g1")
+    row = INITIAL.copy()
+    for name, value in (("sit_stand.knee", 1.2), ("stand.knee", 0.4), ("ramp.sit_rise", 33), ("ramp.rise", 11),
+                        ("sit_fb.kp_hip", 0.7), ("fb.kp_hip", -0.2), ("sit_crouch.knee", 2.5)):
+        row[PARAMETER_NAMES.index(name)] = value
+    policy = KeyframeHumanoidPolicy(row)
+    policy.reset(spec, 1)
+    policy.act(_obs(spec, [(-1.0, 0.0, 0.0)]))  # sets the starting targets
+    knee = spec.joint_names.index("left_knee_joint")
+    for way, (stand_knee, rise_ramp, kp_hip) in ((TUCK, (1.2, 33, 0.7)), (PUSH_A, (0.4, 11, -0.2))):
+        policy._enter(0, way)
+        policy._enter(0, RISE)
+        assert policy.goal[0, knee] == pytest.approx(stand_knee) and policy.ramp[0, RISE] == rise_ramp
+        assert policy._feedback()["fb.kp_hip"][0] == pytest.approx(kp_hip)
+    policy._enter(0, TUCK)
+    policy._enter(0, CROUCH)
+    assert policy.goal[0, knee] == pytest.approx(2.5)
+
+
 def test_a_supine_stage_search_tunes_only_the_sit_up_with_one_try(tmp_path):
     """Two generations of two candidates, 5 control steps in MuJoCo from the supine starts of seed 4: the file
     keeps every parameter outside `SUPINE_PARAMETERS` at ``--init`` except ``situp.tries``, which is 1."""
     from frbench.policies.keyframe_search import SUPINE_PARAMETERS, main
 
-    assert len(SUPINE_PARAMETERS) == 27 and "ramp.tuck" in SUPINE_PARAMETERS and "situp.tries" not in SUPINE_PARAMETERS
+    assert len(SUPINE_PARAMETERS) == 48 and {"ramp.tuck", "sit_fb.kc_hip", "ramp.sit_rise"} <= set(SUPINE_PARAMETERS)
+    assert not {"situp.tries", "fb.kc_hip", "stand.knee", "ramp.rise"} & set(SUPINE_PARAMETERS)
     out = tmp_path / "supine.json"
     main(["--stage", "supine", "--supine-seeds", "4", "--steps", "5", "--popsize", "2", "--generations", "2",
           "--init", str(PARAMS_FILE), "--out", str(out)])

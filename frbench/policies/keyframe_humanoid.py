@@ -70,6 +70,7 @@ from frbench.policies.scripted_humanoid import (
     PIKE_POSE,
     PROP,
     PROP_POSE,
+    PUSH_A,
     PUSH_B,
     PUSH_B_POSE,
     RISE,
@@ -172,11 +173,24 @@ PARAMETERS = (
     ("ramp.rock", 25, 6, 5, 60),
     ("situp.tries", 0, 1, 0, 3),
 )
+#: The crouch and rise after a sit-up start from a different state than after the belly path (sitting back on
+#: the feet rather than folded forward over them), so they have their own crouch and stand poses, ramps and
+#: feedback: copies of these parameters, named by `sit_name`.
+SIT_RISE_SOURCES = ("crouch.", "stand.", "fb.", "ramp.crouch", "ramp.rise")
+
+
+def sit_name(name: str) -> str:
+    """The sit-up path's parameter for a belly-path one: ``crouch.knee`` → ``sit_crouch.knee``, ``ramp.rise`` →
+    ``ramp.sit_rise``."""
+    return f"ramp.sit_{name[5:]}" if name.startswith("ramp.") else f"sit_{name}"
+
+
+PARAMETERS = PARAMETERS + tuple((sit_name(p[0]), *p[1:]) for p in PARAMETERS if p[0].startswith(SIT_RISE_SOURCES))
 #: Parameters added after parameter files were written, each with an initial value that leaves the motion as it
 #: was (zero gains): a file without them loads with those values.
 ADDED_LATER = ("fb.kc_ankle", "fb.kcd_ankle", "fb.kc_hip", "fb.kcd_hip", "fb.com_ref") + tuple(
     p[0] for p in PARAMETERS if p[0].startswith(("tuck.", "prop.", "rock.", "ramp.tuck", "ramp.prop", "ramp.rock",
-                                                 "situp.")))
+                                                 "situp.", "sit_", "ramp.sit_")))
 PARAMETER_NAMES = tuple(p[0] for p in PARAMETERS)
 INITIAL = np.array([p[1] for p in PARAMETERS], dtype=float)
 SCALE = np.array([p[2] for p in PARAMETERS], dtype=float)
@@ -280,7 +294,15 @@ class KeyframeHumanoidPolicy(HumanoidScriptedPolicy):
                 self.env_roll[direction, stage] = np.stack([self.roll_pose(
                     direction, stage, self._named(row, sides[0], sides[1]), self._named(row, sides[2], sides[3]),
                     self._value(row, "roll.waist_yaw")) for row in rows])
-        self.fb = {n: np.array(rows[:, PARAMETER_NAMES.index(n)]) for n in PARAMETER_NAMES if n.startswith("fb.")}
+        #: Feedback gains and references (name → (N,)) of the belly path and of the sit-up path (same names).
+        self.fb_paths = tuple({n: np.array(rows[:, PARAMETER_NAMES.index(prefix + n)])
+                               for n in PARAMETER_NAMES if n.startswith("fb.")} for prefix in ("", "sit_"))
+        self.sit_poses = {CROUCH: np.stack([self._phase_pose(row, "sit_crouch", CROUCH_POSE) for row in rows])}
+        self.sit_poses[RISE] = self.sit_poses[HOLD] = np.stack([self._phase_pose(row, "sit_stand", {}) for row in rows])
+        #: (path, N, 2) ramps of CROUCH and RISE [control steps] for the belly path (0) and the sit-up path (1).
+        self.path_ramps = np.stack([np.maximum(1, np.rint(rows[:, [PARAMETER_NAMES.index(n) for n in names]]))
+                                    for names in (("ramp.crouch", "ramp.rise"), ("ramp.sit_crouch", "ramp.sit_rise"))])
+        self.via_situp = np.zeros(num_envs, dtype=bool)  # the episode's last way down to the crouch was a sit-up
         self.env_situp_tries = np.rint(rows[:, PARAMETER_NAMES.index("situp.tries")]).astype(int)
         self.hip_ids = [self.index[f"{s}_hip_pitch_joint"] for s in ("left", "right")]
         self.ankle_ids = [self.index[f"{s}_ankle_pitch_joint"] for s in ("left", "right")]
@@ -288,41 +310,52 @@ class KeyframeHumanoidPolicy(HumanoidScriptedPolicy):
         self.balance = None  # `ComOverFeet`, built on the first step that needs it
         self.previous_com = np.full(num_envs, np.nan)  # last step's CoM error [m] (NaN: feedback was off)
 
-    def _com_error(self, active: np.ndarray, gravity: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _com_error(self, fb: dict, active: np.ndarray, gravity: np.ndarray,
+                   q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """CoM offset ahead of the feet minus ``fb.com_ref`` [m] and its rate [m/s] (finite difference over one
         control step; 0 on the first active step), (N,) each, computed only where ``active`` and a CoM gain is
         non-zero (else 0)."""
         error, rate = np.zeros(self.num_envs), np.zeros(self.num_envs)
-        gains = np.abs(np.stack([self.fb[f"fb.{k}"] for k in ("kc_ankle", "kcd_ankle", "kc_hip", "kcd_hip")]))
+        gains = np.abs(np.stack([fb[f"fb.{k}"] for k in ("kc_ankle", "kcd_ankle", "kc_hip", "kcd_hip")]))
         ids = np.flatnonzero(active & (gains.sum(axis=0) > 0))
         if len(ids):
             if self.balance is None:
                 self.balance = ComOverFeet(self.spec)
-            error[ids] = self.balance.offset(gravity[ids], q[ids]) - self.fb["fb.com_ref"][ids]
+            error[ids] = self.balance.offset(gravity[ids], q[ids]) - fb["fb.com_ref"][ids]
             had = ids[np.isfinite(self.previous_com[ids])]
             rate[had] = (error[had] - self.previous_com[had]) / CONTROL_DT
         self.previous_com = np.where(active, error, np.nan)
         return error, rate
 
     def _enter(self, i: int, phase: int, goal: np.ndarray | None = None) -> None:
-        super()._enter(i, phase, self.env_poses[phase][i] if goal is None else goal)
+        if phase in (TUCK, PUSH_A):  # the way to the crouch chosen: its crouch, rise and feedback follow
+            self.via_situp[i] = phase == TUCK
+            self.ramp[i, [CROUCH, RISE]] = self.path_ramps[int(self.via_situp[i]), i]
+        poses = self.sit_poses if self.via_situp[i] and phase in self.sit_poses else self.env_poses
+        super()._enter(i, phase, poses[phase][i] if goal is None else goal)
+
+    def _feedback(self) -> dict[str, np.ndarray]:
+        """Each environment's feedback gains and references (name → (N,)), from its current path."""
+        belly, sit = self.fb_paths
+        return {n: np.where(self.via_situp, sit[n], belly[n]) for n in belly}
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         """Joint targets (N, 29) [rad]: the key-frame targets plus the pitch feedback while rising."""
         targets = super().act(obs)
+        fb = self._feedback()
         g = np.asarray(obs["projected_gravity"], dtype=float)
         rate = np.asarray(obs.get("base_angvel", np.zeros_like(g)), dtype=float)[:, 1]
         pitch = np.arctan2(g[:, 0], -g[:, 2])
         w = np.where(self.phase == CROUCH, 0.0,
                      np.where(self.phase == RISE, _smoothstep(self.steps / self.ramp[:, RISE]), 1.0))
-        ref = self.fb["fb.ref_crouch"] + w * (self.fb["fb.ref_stand"] - self.fb["fb.ref_crouch"])
+        ref = fb["fb.ref_crouch"] + w * (fb["fb.ref_stand"] - fb["fb.ref_crouch"])
         error = pitch - ref
         active = np.isin(self.phase, FEEDBACK_PHASES) & (g[:, 2] < FEEDBACK_MAX_GZ)
-        com, com_rate = self._com_error(active, g, np.asarray(obs["joint_pos"], dtype=float))
-        hip = self.fb["fb.kp_hip"] * error + self.fb["fb.kd_hip"] * rate
-        hip += self.fb["fb.kc_hip"] * com + self.fb["fb.kcd_hip"] * com_rate
-        ankle = self.fb["fb.kp_ankle"] * error + self.fb["fb.kd_ankle"] * rate
-        ankle += self.fb["fb.kc_ankle"] * com + self.fb["fb.kcd_ankle"] * com_rate
+        com, com_rate = self._com_error(fb, active, g, np.asarray(obs["joint_pos"], dtype=float))
+        hip = fb["fb.kp_hip"] * error + fb["fb.kd_hip"] * rate
+        hip += fb["fb.kc_hip"] * com + fb["fb.kcd_hip"] * com_rate
+        ankle = fb["fb.kp_ankle"] * error + fb["fb.kd_ankle"] * rate
+        ankle += fb["fb.kc_ankle"] * com + fb["fb.kcd_ankle"] * com_rate
         hip, ankle = (np.clip(v, -FEEDBACK_LIMIT, FEEDBACK_LIMIT) for v in (hip, ankle))
         targets[:, self.hip_ids] += np.where(active, hip, 0.0)[:, None]
         targets[:, self.ankle_ids] += np.where(active, ankle, 0.0)[:, None]

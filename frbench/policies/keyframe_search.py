@@ -226,8 +226,9 @@ ROLL_PARAMETERS = tuple(n for n in PARAMETER_NAMES if n.startswith(("roll", "ram
 PRONE_PARAMETERS = tuple(n for n in PARAMETER_NAMES if n.startswith(("push_b.", "lift.", "pike.", "squat.", "crouch."))
                          or n in ("ramp.push_b", "ramp.lift", "ramp.pike", "ramp.squat", "ramp.crouch"))
 #: Parameters tuned by ``--stage supine`` (the sit-up from the back: key poses and ramps of ``TUCK``, ``PROP``,
-#: ``ROCK``; the search makes one sit-up attempt, ``situp.tries`` = 1, whatever ``--init`` has).
-SUPINE_PARAMETERS = tuple(n for n in PARAMETER_NAMES if n.startswith(("tuck.", "prop.", "rock."))
+#: ``ROCK`` and the sit-up path's own crouch, rise and feedback, ``sit_*``; the search makes one sit-up attempt,
+#: ``situp.tries`` = 1, whatever ``--init`` has).
+SUPINE_PARAMETERS = tuple(n for n in PARAMETER_NAMES if n.startswith(("tuck.", "prop.", "rock.", "sit_", "ramp.sit_"))
                           or n in ("ramp.tuck", "ramp.prop", "ramp.rock"))
 #: Parameters no stage tunes (counts, not magnitudes).
 FIXED_PARAMETERS = ("situp.tries",)
