@@ -189,6 +189,12 @@ def test_a_supine_stage_search_tunes_only_the_sit_up_with_one_try(tmp_path):
     changed = {n for i, n in enumerate(PARAMETER_NAMES) if abs(found["parameters"][n] - init[i]) > 1e-6}
     assert changed - {"situp.tries"} and changed <= set(SUPINE_PARAMETERS) | {"situp.tries"}
     assert found["parameters"]["situp.tries"] == 1
+    main(["--stage", "supine", "--supine-seeds", "4", "--steps", "5", "--popsize", "2", "--generations", "1",
+          "--init", str(PARAMS_FILE), "--only", "sit_stand.", "--out", str(out)])
+    found = json.loads(out.read_text())["parameters"]
+    changed = {n for i, n in enumerate(PARAMETER_NAMES) if abs(found[n] - init[i]) > 1e-6}
+    assert changed - {"situp.tries"} and changed <= {"sit_stand.hip_pitch", "sit_stand.knee", "sit_stand.ankle_pitch",
+                                                     "situp.tries"}
 
 
 def test_extra_parameters_by_name_or_prefix_and_a_clear_error_otherwise():

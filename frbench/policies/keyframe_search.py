@@ -360,6 +360,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--extra", default="",
                         help="comma-separated parameter names, or prefixes ending in '.', tuned besides the stage's own "
                              "(e.g. stand.,ramp.rise)")
+    parser.add_argument("--only", default="",
+                        help="like --extra, but tune only these parameters instead of the stage's own")
     parser.add_argument("--supine-seeds", default=None,
                         help="instead of --starts, every supine start of these seeds (e.g. 4-15)")
     parser.add_argument("--backends", default="mujoco",
@@ -404,6 +406,8 @@ def main(argv: list[str] | None = None) -> int:
     else:
         subset = {"roll": ROLL_PARAMETERS, "prone": PRONE_PARAMETERS, "supine": SUPINE_PARAMETERS}.get(
             args.stage, tuple(n for n in PARAMETER_NAMES if n not in FIXED_PARAMETERS))
+        if args.only:
+            subset = extra_parameters(args.only, ())
         tuned = np.array([PARAMETER_NAMES.index(n) for n in subset + extra_parameters(args.extra, subset)])
         evaluator = pooled([Evaluator(starts, args.popsize, backend, roll=args.stage == "roll",
                                       steps=args.steps or EPISODE_STEPS, deadline=args.deadline, late=args.late)
