@@ -243,6 +243,34 @@ def test_a_supine_start_rolls_over_and_gets_up_in_mujoco():
     assert record["success"] and not record["diverged"] and record["time_to_recover"] < 5.0
 
 
+@pytest.mark.slow
+def test_a_supine_start_sits_up_and_is_up_within_three_seconds_in_mujoco():
+    """Seed 0, episode 7 of g1/flat/level 5 (a supine start of the grid) with the shipped parameters: LIE → TUCK →
+    PROP → ROCK → CROUCH → RISE → HOLD, no roll, and the task's success; the evaluator's time to stand < 3 s (the
+    belly path needs ≈ 4.5 s)."""
+    from frbench.evaluation.runner import Cell, run_cell
+    from frbench.policies.scripted_humanoid import PHASE_NAMES
+    from frbench.tasks.initial_states import draw_starts
+    from frbench.tasks.recovery import EPISODE_STEPS, RecoveryTask
+    from frbench.terrains import make_terrain
+
+    spec, terrain = get_robot("g1"), make_terrain("flat", 5, 0)
+    starts = draw_starts(spec, terrain, "flat", 5, 0, range(8))
+    task = RecoveryTask(spec, "mujoco", terrain, 8)
+    obs, policy, phases = task.reset(starts), KeyframeHumanoidPolicy(), []
+    policy.reset(spec, 8)
+    for _ in range(EPISODE_STEPS):
+        obs = task.step(policy.act(obs))
+        if not phases or phases[-1] != PHASE_NAMES[policy.phase[7]]:
+            phases.append(PHASE_NAMES[policy.phase[7]])
+    success = bool(task.success.success[7])
+    task.close()
+    assert starts.kinds[7] == "supine" and success
+    assert phases == ["lie", "tuck", "prop", "rock", "crouch", "rise", "hold"]
+    record = run_cell(Cell("g1", "mujoco", "flat", 5, 0, 8), "keyframe-humanoid")[7]
+    assert record["success"] and record["time_to_recover"] < 3.0
+
+
 def test_results_carry_the_parameter_files_checksum():
     import hashlib
 

@@ -12,6 +12,11 @@ for backs and sides → ``PUSH_A`` → ``PUSH_B`` → ``LIFT`` → ``PIKE`` → 
   for the right side, and ramp lengths in control steps), one vector per
   environment, so a batch of candidates can run side by side
   (`frbench.policies.keyframe_search`);
+* from the back it can sit up instead of rolling (``situp.tries`` > 0; 0 in parameter files written before it
+  existed): ``TUCK`` → ``PROP`` → ``ROCK`` (`frbench.policies.scripted_humanoid.SITUP_PHASES`, key poses
+  ``tuck.*``, ``prop.*``, ``rock.*``) into the crouch, which then uses the sit-up path's own crouch and stand poses,
+  ramps and feedback (``sit_crouch.*``, ``sit_stand.*``, ``ramp.sit_*``, ``sit_fb.*``: `sit_name` of the belly
+  path's); a failed sit-up falls back to ``LIE`` and, its tries used, to the roll;
 * in ``CROUCH``, ``RISE`` and ``HOLD`` (pelvis not inverted: g_z < `FEEDBACK_MAX_GZ`) a
   proprioceptive pitch feedback is added
   to both hip-pitch and ankle-pitch targets:
@@ -28,15 +33,17 @@ module, with the commands that found them (CMA-ES; the first searches from 4 pro
 level 1 seed:episode 0:4, 1:0, 2:8, 3:3, the first two also in the grid below).
 
 Status (measured; docs/results.md, "G1"): ``frbench evaluate --policy keyframe-humanoid --robots g1
---terrains flat,slopes,rough,stairs --levels 1,5,10 --seeds 0,1 --episodes 8 --jobs 2``: 17/384 episodes
-(MuJoCo 10, PyBullet 7), all on flat ground and level-1 slopes, all up at 4.52-4.60 s; supine starts 0/62
-there (2 supine successes on seeds 2-3). Crouch, rise and feedback parameters: a session-6 search from
-recorded crouch states in both simulators (``rise_note``); from held-out crouch states the rise succeeds
-within the 58 steps an episode leaves in 10/22 (MuJoCo) and 45/54 (PyBullet). Roll and belly-to-crouch
-parameters: session-7 searches in both simulators (``search``): held-out non-prone starts face down and
-pushing up after 2.4 s 8/22 and 7/22 (before 3/22, 6/22); 47 of the grid's 48 flat MuJoCo starts reach
-the push-up within 5 s (26 before), but the motion from the push-up into the crouch still takes ≈ 174
-control steps (3.5 s), so only starts that are on the belly within ≈ 0.6 s can be up by 5 s.
+--terrains flat,slopes,rough,stairs --levels 1,5,10 --seeds 0,1 --episodes 8 --jobs 2``: 35/384 episodes
+(MuJoCo 21, PyBullet 14; 17/384 without the sit-up), flat ground 37.5 % / 27.1 % (MuJoCo / PyBullet), one or
+none per cell on level-1 slopes, rough ground and stairs, none above level 1 there. The sit-up (session 8,
+``situp_note`` in the parameter file) is up from 2.88 s; the belly path at ≈ 4.5 s. Held out (flat and slopes,
+levels 1, 5, 10, seeds 2-3): 29/192 (MuJoCo 16, PyBullet 13) against 17/192 without the sit-up; supine starts of
+flat level-1 seeds 10-21 (not searched): the task's success in 6/26 (MuJoCo) and 7/26 (PyBullet). Most
+failed sit-ups reach 0.8 m at ≈ 3 s and then tip backwards while standing. Crouch, rise and feedback
+parameters of the belly path: a session-6 search from recorded crouch states in both simulators
+(``rise_note``). Roll and belly-to-crouch parameters: session-7 searches in both simulators (``search``): the
+motion from the push-up into the crouch takes ≈ 174 control steps (3.5 s), so only starts that are on the belly
+within ≈ 0.6 s can be up by 5 s that way.
 
 The motion the session-4 search found from the belly is not the intended squat rise: the pike tips over
 into a head stand (pelvis upside down at 0.53 m), the robot rolls forward out of it onto its feet into a
