@@ -12,9 +12,12 @@ as `frbench.policies.keyframe_states` writes them; ``BACKEND:FILE`` runs them in
 that simulator, and several ``--states`` score the mean over simulators;
 ``--deadline`` bounds when the robot must be up). ``--stage prone`` tunes only the
 way from the belly into the crouch (`PRONE_PARAMETERS`) on whole episodes from
-prone starts (``--prone-seeds``), ``--stage roll`` only the roll (``--roll-seeds``);
-``--backends mujoco,pybullet`` runs those stages in both simulators and scores
-the mean. The last run behind the shipped parameters:
+prone starts (``--prone-seeds``), ``--stage roll`` only the roll (``--roll-seeds``),
+``--stage supine`` only the sit-up from the back and its own rise (`SUPINE_PARAMETERS`, from
+the supine starts of ``--supine-seeds``); ``--extra``/``--only`` tune named parameters
+besides/instead of the stage's own; ``--backends mujoco,pybullet`` runs those stages in both
+simulators and scores the mean. The last runs behind the shipped parameters are in the
+parameter file (``search``, ``situp_search``); the rise stage's:
 
     .venv/bin/python -m frbench.policies.keyframe_search --stage rise \
         --states mujoco:mj24.npz --states pybullet:pb24.npz --steps 150 --deadline 48 \
