@@ -206,6 +206,8 @@ def test_extra_parameters_by_name_or_prefix_and_a_clear_error_otherwise():
     for bad in ("stand", "nope.", "situp.tries"):
         with pytest.raises(SystemExit, match=f"--extra: '{bad}' names no tunable parameter"):
             extra_parameters(bad, SUPINE_PARAMETERS)
+    with pytest.raises(SystemExit, match="--only: 'stand' names no tunable parameter"):
+        extra_parameters("stand", (), "--only")
 
 
 def test_shaped_score_ranks_upright_success_first():

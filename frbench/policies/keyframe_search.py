@@ -321,14 +321,14 @@ def rise_evaluator(states: list[str], popsize: int, steps: int, deadline: int | 
     return pooled(evaluators)
 
 
-def extra_parameters(text: str, already: tuple[str, ...]) -> tuple[str, ...]:
-    """Parameter names selected by ``--extra`` (comma-separated names, or prefixes ending in '.') not in
-    ``already``; an item that selects none is an error naming it."""
+def extra_parameters(text: str, already: tuple[str, ...], flag: str = "--extra") -> tuple[str, ...]:
+    """Parameter names selected by ``--extra`` or ``--only`` (``flag``; comma-separated names, or prefixes ending
+    in '.') not in ``already``; an item that selects none is an error naming the flag and the item."""
     out = []
     for item in filter(None, (t.strip() for t in text.split(","))):
         hits = [n for n in PARAMETER_NAMES if (n.startswith(item) if item.endswith(".") else n == item)]
         if not hits or set(hits) & set(FIXED_PARAMETERS):
-            raise SystemExit(f"--extra: {item!r} names no tunable parameter (names: keyframe_humanoid.PARAMETERS)")
+            raise SystemExit(f"{flag}: {item!r} names no tunable parameter (names: keyframe_humanoid.PARAMETERS)")
         out += [n for n in hits if n not in already and n not in out]
     return tuple(out)
 
@@ -405,12 +405,14 @@ def main(argv: list[str] | None = None) -> int:
         tuned = np.array([PARAMETER_NAMES.index(n) for n in RISE_PARAMETERS])
         if not args.states:
             parser.error("--stage rise needs --states")
+        if args.extra or args.only:
+            parser.error("--extra and --only apply to the full, prone, roll and supine stages, not to rise")
         evaluator = rise_evaluator(args.states, args.popsize, args.steps or 150, args.deadline)
     else:
         subset = {"roll": ROLL_PARAMETERS, "prone": PRONE_PARAMETERS, "supine": SUPINE_PARAMETERS}.get(
             args.stage, tuple(n for n in PARAMETER_NAMES if n not in FIXED_PARAMETERS))
         if args.only:
-            subset = extra_parameters(args.only, ())
+            subset = extra_parameters(args.only, (), "--only")
         tuned = np.array([PARAMETER_NAMES.index(n) for n in subset + extra_parameters(args.extra, subset)])
         evaluator = pooled([Evaluator(starts, args.popsize, backend, roll=args.stage == "roll",
                                       steps=args.steps or EPISODE_STEPS, deadline=args.deadline, late=args.late)

@@ -370,6 +370,6 @@ class HumanoidScriptedPolicy:
         elif phase == RISE:
             self._enter(i, HOLD)
         elif phase in SITUP_PHASES:
-            self._enter(i, PROP if phase == TUCK else ROCK if phase == PROP else CROUCH)
+            self._enter(i, (*SITUP_PHASES, CROUCH)[SITUP_PHASES.index(phase) + 1])  # TUCK -> PROP -> ROCK -> CROUCH
         elif phase != HOLD:
             self._enter(i, phase + 1)  # PUSH_A -> PUSH_B -> LIFT -> PIKE -> SQUAT -> CROUCH -> RISE
