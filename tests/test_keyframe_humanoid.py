@@ -174,6 +174,53 @@ def test_after_a_sit_up_the_crouch_rise_and_feedback_are_the_sit_up_paths_own():
     assert policy.goal[0, knee] == pytest.approx(2.5)
 
 
+def test_entering_the_gate_restores_the_recorded_way_to_the_crouch():
+    """A crouch recorded after a sit-up (`gate_paths` 1) restarts on the sit-up path's crouch pose, ramps and
+    feedback; one recorded after the belly path (0), or with no paths given, on the belly path's."""
+    from frbench.policies.scripted_humanoid import CROUCH, RISE
+
+    spec = get_robot("g1")
+    row = INITIAL.copy()
+    for name, value in (("sit_crouch.knee", 2.5), ("crouch.knee", 1.9), ("ramp.sit_crouch", 21), ("ramp.crouch", 37),
+                        ("ramp.sit_rise", 33), ("ramp.rise", 11)):
+        row[PARAMETER_NAMES.index(name)] = value
+    policy = KeyframeHumanoidPolicy(row)
+    policy.reset(spec, 3)
+    q = np.tile(spec.default_pose, (3, 1))
+    policy.enter_gate(np.array([0, 1]), q[:2], q, paths=np.array([1, 0]))
+    policy.enter_gate(np.array([2]), q[:1], q)
+    knee = spec.joint_names.index("left_knee_joint")
+    assert policy.phase.tolist() == [CROUCH] * 3
+    assert policy.gate_paths().tolist() == [1, 0, 0]
+    assert policy.goal[:, knee].tolist() == pytest.approx([2.5, 1.9, 1.9])
+    assert policy.ramp[:, CROUCH].tolist() == [21, 37, 37] and policy.ramp[:, RISE].tolist() == [33, 11, 11]
+    assert policy._feedback()["fb.kp_hip"].tolist() == pytest.approx(
+        [row[PARAMETER_NAMES.index("sit_fb.kp_hip")], *[row[PARAMETER_NAMES.index("fb.kp_hip")]] * 2])
+
+
+def test_the_residual_gate_opens_in_the_named_phases_only():
+    from frbench.policies.scripted_humanoid import (
+        CROUCH,
+        HOLD,
+        LIE,
+        PROP,
+        RISE,
+        ROCK,
+        TUCK,
+        gate_phase_ids,
+    )
+
+    policy = KeyframeHumanoidPolicy()
+    policy.reset(get_robot("g1"), 7)
+    policy.phase[:] = [LIE, TUCK, PROP, ROCK, CROUCH, RISE, HOLD]
+    assert policy.residual_gate().tolist() == [0, 0, 0, 0, 1, 1, 1]
+    assert policy.residual_gate(("prop", "rock", "hold")).tolist() == [0, 0, 1, 1, 0, 0, 1]
+    assert gate_phase_ids(("tuck", "rise")) == (TUCK, RISE)
+    for bad in (("stand",), ()):
+        with pytest.raises(ValueError, match=r"gate phases .*expected one or more of lie, roll"):
+            gate_phase_ids(bad)
+
+
 def test_a_supine_stage_search_tunes_only_the_sit_up_with_one_try(tmp_path):
     """Two generations of two candidates, 5 control steps in MuJoCo from the supine starts of seed 4: the file
     keeps every parameter outside `SUPINE_PARAMETERS` at ``--init`` except ``situp.tries``, which is 1."""

@@ -385,13 +385,26 @@ def test_train_command_records_the_settle_and_the_base_controller_parameters(tmp
     assert main(["train", "--robots", "g1", "--init-std", "0", "--out", str(tmp_path / "bad")]) == 2
     assert main(["train", "--robots", "g1", "--base-controller", "keyframe-humanoid", "--rise-starts", "0.5",
                  "--out", str(tmp_path / "bad")]) == 2  # rise starts need the gate
+    assert main(["train", "--robots", "g1", "--base-controller", "keyframe-humanoid", "--gate-phases", "rise",
+                 "--out", str(tmp_path / "bad")]) == 2  # gate phases need the gate
+    assert main(["train", "--robots", "g1", "--base-controller", "keyframe-humanoid", "--gate-residual",
+                 "--gate-phases", "rise,stand", "--out", str(tmp_path / "bad")]) == 2  # no phase 'stand'
     assert not (tmp_path / "bad").exists()
 
 
 def test_a_gated_residual_acts_only_in_the_base_controllers_rise(tmp_path):
     from frbench.policies.keyframe_humanoid import KeyframeHumanoidPolicy
+    from frbench.policies.learned import residual_targets
     from frbench.policies.registry import load_policy
-    from frbench.policies.scripted_humanoid import CROUCH, HOLD, LIE, RISE, ROLL
+    from frbench.policies.scripted_humanoid import (
+        CROUCH,
+        HOLD,
+        LIE,
+        PROP,
+        RISE,
+        ROLL,
+        TUCK,
+    )
     from frbench.robots import get_robot
     from frbench.training.run import TrainingRun
 
@@ -402,11 +415,17 @@ def test_a_gated_residual_acts_only_in_the_base_controllers_rise(tmp_path):
     assert controller.residual_gate().tolist() == [0.0, 0.0, 1.0, 1.0, 1.0]
 
     cfg = TrainEnvConfig(num_envs=2, robot="g1", randomize=False, families=("flat",), episode_steps=3, settle_steps=2,
-                         base_controller="keyframe-humanoid", residual_gate=True, action_scale=0.1)
+                         base_controller="keyframe-humanoid", residual_gate=True, action_scale=0.1,
+                         gate_phases=("tuck", "crouch", "rise", "hold"))
     run = TrainingRun(tmp_path / "g1", "ppo", cfg, total_steps=2 * 24, checkpoint_every=1)
     run.train(progress_bar=False)
     policy = load_policy(str(tmp_path / "g1"))
-    assert policy.residual_gate
+    assert policy.residual_gate and list(policy.gate_phases) == ["tuck", "crouch", "rise", "hold"]
+    controller.phase[:] = [TUCK, PROP, CROUCH, LIE, HOLD]  # the run's gate adds the sit-up's first phase
+    residual = residual_targets(np.zeros((5, 29)), np.ones((5, 29)), 0.1, controller, True, policy.gate_phases)
+    assert residual[:, 0].tolist() == pytest.approx([0.1, 0.0, 0.1, 0.0, 0.1])
+    assert residual_targets(np.zeros((5, 29)), np.ones((5, 29)), 0.1, controller, True)[:, 0].tolist() == \
+        pytest.approx([0.0, 0.0, 0.1, 0.0, 0.1])  # runs from before gate_phases: the rise alone
     policy.reset(spec, 2)
     reference = KeyframeHumanoidPolicy()
     reference.reset(spec, 2)
@@ -434,16 +453,16 @@ def test_rise_starts_begin_where_the_gate_opened_with_the_controller_in_its_rise
     from frbench.training.env import RecoveryTrainingEnv
 
     # a gate that opens at the first step, so that a 3-step recording fills the bank with every environment
-    monkeypatch.setattr(HumanoidScriptedPolicy, "residual_gate", lambda self: np.ones(self.num_envs))
+    monkeypatch.setattr(HumanoidScriptedPolicy, "residual_gate", lambda self, phases=None: np.ones(self.num_envs))
     cfg = TrainEnvConfig(num_envs=3, robot="g1", randomize=False, families=("flat",), episode_steps=3, settle_steps=2,
                          base_controller="keyframe-humanoid", residual_gate=True, rise_start_fraction=1.0,
                          action_scale=0.1)
     env = RecoveryTrainingEnv(cfg)
     assert len(env.rise_bank) == 3  # each environment once, at the step its gate first opened
     assert env.from_demo.all() and (env.controller.phase == CROUCH).all()
-    recorded_q = np.concatenate([state.q for state, _, _ in env.rise_bank])
+    recorded_q = np.concatenate([row[0].q for row in env.rise_bank])
     assert {tuple(np.round(q, 9)) for q in env.state.q} <= {tuple(np.round(q, 9)) for q in recorded_q}
-    starts = {tuple(np.round(env.controller._clip(t), 9)) for _, _, t in env.rise_bank}
+    starts = {tuple(np.round(env.controller._clip(row[2]), 9)) for row in env.rise_bank}
     assert {tuple(np.round(s, 9)) for s in env.controller.start} <= starts  # the ramp starts at recorded targets
     for _ in range(3):
         env.step(torch.zeros(3, 29))

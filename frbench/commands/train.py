@@ -46,6 +46,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--gate-residual", action="store_true",
                    help="add the residual only where the base controller opens its gate (keyframe-humanoid and "
                         "scripted-humanoid: crouch, rise, hold)")
+    p.add_argument("--gate-phases", default=None, metavar="PHASES",
+                   help="with --gate-residual: the base controller's phases the residual acts in, comma-separated "
+                        "(default crouch,rise,hold; keyframe-humanoid's sit-up adds tuck,prop,rock)")
     p.add_argument("--rise-starts", type=float, default=0.0, metavar="FRACTION",
                    help="with --gate-residual: start this fraction of episodes where the base controller's gate "
                         "opened in a recorded run (the key frames' crouch), so that they exercise the rise")
@@ -119,6 +122,7 @@ def morphology_range_changes(assignments: list[str]) -> dict[str, tuple[float, f
 def run(args) -> int:
     """Create (or resume) the run and train it to its budget."""
     from frbench.errors import FrbenchError
+    from frbench.policies.scripted_humanoid import DEFAULT_GATE_PHASES, gate_phase_ids
     from frbench.terrains import FAMILIES
     from frbench.training.env import TrainEnvConfig, training_reward_config
     from frbench.training.methods import METHODS
@@ -154,6 +158,15 @@ def run(args) -> int:
             raise FrbenchError(f"--assist-force {args.assist_force}: expected a fraction of the weight in [0, 2]")
         if not 0.0 <= args.rise_starts <= 1.0 or (args.rise_starts and not args.gate_residual):
             raise FrbenchError(f"--rise-starts {args.rise_starts}: expected a fraction in [0, 1], with --gate-residual")
+        gate_phases = DEFAULT_GATE_PHASES
+        if args.gate_phases is not None:
+            gate_phases = tuple(p.strip() for p in args.gate_phases.split(","))
+            try:
+                gate_phase_ids(gate_phases)
+            except ValueError as exc:
+                raise FrbenchError(f"--gate-phases {args.gate_phases!r}: {exc}") from None
+            if not args.gate_residual:
+                raise FrbenchError("--gate-phases needs --gate-residual (they name where the gate opens)")
         if args.gate_residual and not args.base_controller:
             raise FrbenchError("--gate-residual needs --base-controller (the gate is the base controller's)")
         if args.init_std is not None and args.init_std <= 0:
@@ -182,7 +195,7 @@ def run(args) -> int:
             randomize=not args.no_randomize,
             reward=reward, morphology_ranges=ranges, seed=args.seed, demo_start_fraction=args.demo_starts,
             base_controller=args.base_controller, base_controller_parameters=controller_parameters,
-            residual_gate=args.gate_residual, rise_start_fraction=args.rise_starts,
+            residual_gate=args.gate_residual, gate_phases=gate_phases, rise_start_fraction=args.rise_starts,
             demo_start_until=args.demo_until if args.demo_until is not None else args.steps / 2,
             assist_force=args.assist_force,
             assist_until=args.assist_until if args.assist_until is not None else args.steps / 2,

@@ -342,6 +342,20 @@ class KeyframeHumanoidPolicy(HumanoidScriptedPolicy):
         poses = self.sit_poses if self.via_situp[i] and phase in self.sit_poses else self.env_poses
         super()._enter(i, phase, poses[phase][i] if goal is None else goal)
 
+    def gate_paths(self) -> np.ndarray:
+        """(N,) int: 1 where the environment came to the crouch by the sit-up, 0 by the belly path."""
+        return self.via_situp.astype(int)
+
+    def enter_gate(self, ids: np.ndarray, targets: np.ndarray, joint_pos: np.ndarray,
+                   paths: np.ndarray | None = None) -> None:
+        """As the base class, on the path ``paths`` (len(ids),) recorded with each crouch (`gate_paths`; None:
+        the belly path): the sit-up path's crouch and stand poses, ramps and feedback where it is 1."""
+        ids = np.asarray(ids, dtype=int)
+        situp = np.zeros(len(ids), dtype=bool) if paths is None else np.asarray(paths).astype(bool)
+        self.via_situp[ids] = situp
+        self.ramp[ids[:, None], [CROUCH, RISE]] = self.path_ramps[situp.astype(int), ids]
+        super().enter_gate(ids, targets, joint_pos, paths)
+
     def _feedback(self) -> dict[str, np.ndarray]:
         """Each environment's feedback gains and references (name → (N,)), from its current path."""
         belly, sit = self.fb_paths

@@ -41,10 +41,13 @@ def policy_name(method: str, checkpoint: Path) -> str:
     return re.sub(r"[^A-Za-z0-9._-]", "-", name)[:64]
 
 
-def residual_targets(base: np.ndarray, action: np.ndarray, scale: float, controller, gated: bool) -> np.ndarray:
+def residual_targets(base: np.ndarray, action: np.ndarray, scale: float, controller, gated: bool,
+                     phases: tuple[str, ...] | None = None) -> np.ndarray:
     """Joint targets (N, J) [rad] of a residual policy: base + scale·a, or base + gate·scale·a with the base
-    controller's ``residual_gate()`` (N,) when ``gated`` — the one rule training and deployment share."""
-    gate = controller.residual_gate()[:, None] if gated else 1.0
+    controller's ``residual_gate(phases)`` (N,) when ``gated`` (None: its default phases) — the one rule
+    training and deployment share."""
+    gate = (controller.residual_gate() if phases is None else controller.residual_gate(tuple(phases)))[:, None] \
+        if gated else 1.0
     return base + gate * scale * action
 
 
@@ -77,6 +80,7 @@ class LearnedPolicy:
         self.robot_kind = str(data.get("robot_kind", "quadruped"))
         self.base_controller_name = config["env"].get("base_controller")
         self.residual_gate = bool(config["env"].get("residual_gate", False))
+        self.gate_phases = config["env"].get("gate_phases")  # None (runs before it existed): the default rise
         self.long_frames = int(config["env"].get("long_history", 0)) if "long_history" in self.groups else 0
         actor_class = resolve_callable(actor_cfg.pop("class_name"))
         widths = deployable_group_widths(self.num_actions, self.frames, self.long_frames)
@@ -135,7 +139,8 @@ class LearnedPolicy:
         if self.base_controller is None:
             return self.default_pose + self.action_scale * self.action
         base = np.asarray(self.base_controller.act(obs))
-        return residual_targets(base, self.action, self.action_scale, self.base_controller, self.residual_gate)
+        return residual_targets(base, self.action, self.action_scale, self.base_controller, self.residual_gate,
+                                self.gate_phases)
 
 
 def load_learned_policy(data: dict, path: Path) -> LearnedPolicy:

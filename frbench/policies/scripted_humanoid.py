@@ -101,6 +101,16 @@ PHASE_NAMES = ("lie", "roll", "push_a", "push_b", "lift", "pike", "squat", "crou
 SITUP_PHASES = (TUCK, PROP, ROCK)
 #: Phases in which a gated residual policy may change the targets (`residual_gate`): the rise onto the feet.
 RESIDUAL_PHASES = (CROUCH, RISE, HOLD)
+#: The same by name, the training's default gate (`frbench train --gate-phases`).
+DEFAULT_GATE_PHASES = tuple(PHASE_NAMES[p] for p in RESIDUAL_PHASES)
+
+
+def gate_phase_ids(names) -> tuple[int, ...]:
+    """Phase ids of the phase ``names`` (e.g. ``("prop", "rock", "crouch")``); ValueError naming an unknown one."""
+    unknown = [n for n in names if n not in PHASE_NAMES]
+    if unknown or not len(names):
+        raise ValueError(f"gate phases {list(names)}: expected one or more of {', '.join(PHASE_NAMES)}")
+    return tuple(PHASE_NAMES.index(n) for n in names)
 
 #: Interpolation time [control steps of 0.02 s] from the previous targets to each phase's pose.
 RAMP_STEPS = np.array([10, 30, 10, 20, 35, 40, 45, 30, 40, 1, 20, 25, 25])
@@ -296,16 +306,23 @@ class HumanoidScriptedPolicy:
         self.target = self._clip(self.start + w * (self.goal - self.start))
         return self.target.copy()
 
-    def residual_gate(self) -> np.ndarray:
-        """(N,) 1.0 where a gated residual policy acts on the targets of the last `act` (phases in
-        `RESIDUAL_PHASES`), else 0.0 (the motion before the rise stays the controller's alone)."""
-        return np.isin(self.phase, RESIDUAL_PHASES).astype(float)
+    def residual_gate(self, phases: tuple[str, ...] = DEFAULT_GATE_PHASES) -> np.ndarray:
+        """(N,) 1.0 where a gated residual policy acts on the targets of the last `act` (the phases named by
+        ``phases``, by default `RESIDUAL_PHASES`), else 0.0 (the motion before stays the controller's alone)."""
+        return np.isin(self.phase, gate_phase_ids(phases)).astype(float)
 
-    def enter_gate(self, ids: np.ndarray, targets: np.ndarray, joint_pos: np.ndarray) -> None:
+    def gate_paths(self) -> np.ndarray:
+        """(N,) int: which way each environment came to the crouch (0 here: this controller has one way; see
+        `KeyframeHumanoidPolicy`), recorded with the crouch so that `enter_gate` can restore it."""
+        return np.zeros(self.num_envs, dtype=int)
+
+    def enter_gate(self, ids: np.ndarray, targets: np.ndarray, joint_pos: np.ndarray,
+                   paths: np.ndarray | None = None) -> None:
         """Put environments ``ids`` at the start of the first gated phase (``CROUCH``), ramping from ``targets``
         (len(ids), J) [rad] (the targets this controller had when its gate opened in a recorded run) — for
         episodes that start where the rise begins. ``joint_pos`` (N, J) [rad]: every environment's measured
-        angles, the other environments' starting targets if no `act` has run yet."""
+        angles, the other environments' starting targets if no `act` has run yet. ``paths`` (len(ids),): their
+        `gate_paths` when recorded (ignored here)."""
         if self.target is None:  # as the first act() would: every environment starts from its measured angles
             self.target = self._clip(np.asarray(joint_pos, dtype=float).copy())
             self.start = self.target.copy()

@@ -37,6 +37,7 @@ from tensordict import TensorDict
 from frbench.backends import make_backend
 from frbench.backends.base import PhysicsParams, RobotState
 from frbench.policies.learned import residual_targets
+from frbench.policies.scripted_humanoid import DEFAULT_GATE_PHASES, gate_phase_ids
 from frbench.robots import get_robot, ground_truth
 from frbench.tasks.initial_states import draw_start
 from frbench.tasks.observations import (
@@ -192,6 +193,9 @@ class TrainEnvConfig:
     #: Gated residual: q* = base(o) + gate·action_scale·a with the base controller's ``residual_gate()`` (N,)
     #: (``keyframe-humanoid``: 1 in its rise, 0 before), so exploration cannot break the motion before the rise.
     residual_gate: bool = False
+    #: The base controller's phases in which the gated residual acts (names, `scripted_humanoid.PHASE_NAMES`);
+    #: the default is the rise (crouch, rise, hold); the sit-up's ``tuck``, ``prop``, ``rock`` may be added.
+    gate_phases: tuple[str, ...] = DEFAULT_GATE_PHASES
     #: With a gated residual: this fraction of episodes starts where the base controller opened its gate in a
     #: recorded run from fresh fallen starts (the key frames' crouch), the controller in that phase, so that
     #: every such episode exercises the rise (0: off). Logged success rates count fresh fallen starts only.
@@ -273,6 +277,8 @@ class RecoveryTrainingEnv(VecEnv):
             self.controller = load_base_controller(self.cfg_obj.base_controller, self.cfg_obj.base_controller_parameters)
             if self.cfg_obj.residual_gate and not hasattr(self.controller, "residual_gate"):
                 raise ValueError(f"residual_gate: base controller {self.cfg_obj.base_controller!r} has no residual_gate()")
+            if self.cfg_obj.residual_gate:
+                gate_phase_ids(self.cfg_obj.gate_phases)  # ValueError naming an unknown phase
             if self.cfg_obj.rise_start_fraction > 0.0 and not self.cfg_obj.residual_gate:
                 raise ValueError("rise_start_fraction needs residual_gate (the rise starts where the gate opens)")
             if not self.controller.supports(self.spec):
@@ -359,11 +365,11 @@ class RecoveryTrainingEnv(VecEnv):
         self.init_xy = self.state.base_pos[:, :2].copy()
         self.qd_prev = self.state.qd.copy()  # the first step's joint acceleration starts from the recorded state
 
-    def _record_rise_bank(self) -> list[tuple[RobotState, int, np.ndarray]]:
+    def _record_rise_bank(self) -> list[tuple[RobotState, int, np.ndarray, int]]:
         """Run a fresh copy of the base controller from fresh fallen starts for one evaluation episode
         (`EPISODE_STEPS`, whatever the training episode length: the gate openings an evaluation can see); the
-        state (one row), tile and controller targets (J,) [rad] of every environment at the step its gate first
-        opened."""
+        state (one row), tile, controller targets (J,) [rad] and way to the crouch (`gate_paths`) of every
+        environment at the step its default gate (the crouch) first opened."""
         from frbench.policies.registry import load_base_controller
 
         self._fresh_starts()
@@ -375,7 +381,9 @@ class RecoveryTrainingEnv(VecEnv):
             self.backend.step(np.asarray(controller.act(proprioception(state, self.default_pose))))
             state = self.backend.state()
             new = (controller.residual_gate() > 0) & ~opened & ~self.backend.diverged
-            bank += [(state.take([i]), int(self.tile_row[i]), controller.target[i].copy()) for i in np.flatnonzero(new)]
+            paths = controller.gate_paths()
+            bank += [(state.take([i]), int(self.tile_row[i]), controller.target[i].copy(), int(paths[i]))
+                     for i in np.flatnonzero(new)]
             opened |= new
         return bank
 
@@ -392,7 +400,8 @@ class RecoveryTrainingEnv(VecEnv):
                               ("base_pos", "base_quat", "base_linvel", "base_angvel", "q", "qd")})
         self._restart_from(ids, state, [self.rise_bank[k][1] for k in picks])
         self.from_demo[ids] = True
-        self.controller.enter_gate(ids, np.stack([self.rise_bank[k][2] for k in picks]), self.state.q)
+        self.controller.enter_gate(ids, np.stack([self.rise_bank[k][2] for k in picks]), self.state.q,
+                                   np.array([self.rise_bank[k][3] for k in picks]))
 
     def _fresh_starts(self) -> None:
         """Fallen starts on every environment's curriculum tile, settled for ``settle_steps`` on soft gains."""
@@ -509,7 +518,7 @@ class RecoveryTrainingEnv(VecEnv):
         else:
             base = np.asarray(self.controller.act(proprioception(self.state, self.default_pose)), dtype=np.float64)
             targets = residual_targets(base, self.action, self.cfg_obj.action_scale, self.controller,
-                                       self.cfg_obj.residual_gate)
+                                       self.cfg_obj.residual_gate, self.cfg_obj.gate_phases)
         targets = np.clip(targets, self.lower, self.upper)
         self.qd_prev = self.state.qd
         self.backend.step(targets)

@@ -67,6 +67,8 @@ def env_cfg_from_dict(data: dict):
     data = dict(data)
     reward = data.pop("reward")
     data["families"] = tuple(data["families"])
+    if "gate_phases" in data:
+        data["gate_phases"] = tuple(data["gate_phases"])
     data["gain_ranges"] = {k: tuple(v) for k, v in data.get("gain_ranges", {}).items()}
     data["morphology_ranges"] = {k: tuple(v) for k, v in data.get("morphology_ranges", {}).items()}
     return TrainEnvConfig(**data, reward=RewardConfig(**reward))
