@@ -46,9 +46,10 @@ def residual_targets(base: np.ndarray, action: np.ndarray, scale: float, control
     """Joint targets (N, J) [rad] of a residual policy: base + scale·a, or base + gate·scale·a with the base
     controller's ``residual_gate(phases)`` (N,) when ``gated`` (None: its default phases) — the one rule
     training and deployment share."""
-    gate = (controller.residual_gate() if phases is None else controller.residual_gate(tuple(phases)))[:, None] \
-        if gated else 1.0
-    return base + gate * scale * action
+    if not gated:
+        return base + scale * action
+    gate = controller.residual_gate() if phases is None else controller.residual_gate(tuple(phases))
+    return base + gate[:, None] * scale * action
 
 
 class LearnedPolicy:
