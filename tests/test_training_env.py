@@ -152,6 +152,61 @@ def test_a_resumed_run_can_start_a_reward_stage_with_the_papers_motion_penalties
         reward_weight_changes(None, ["smoothness=-1"])
 
 
+def test_an_action_held_for_several_control_steps_is_one_decision_in_training_and_deployment(tmp_path):
+    """``action_hold`` 3 over 7-step episodes: decisions advance 3, 3, 1 control steps, their rewards summed; the
+    deployed policy asks its network once every 3 `act` calls and adds the same action in between."""
+    from frbench.policies.registry import load_policy
+    from frbench.robots import get_robot
+    from frbench.training.env import RecoveryTrainingEnv
+    from frbench.training.run import TrainingRun
+
+    cfg = TrainEnvConfig(num_envs=2, robot="go2", randomize=False, families=("flat",), episode_steps=7,
+                         settle_steps=2, action_hold=3)
+    env = RecoveryTrainingEnv(cfg)
+    assert env.max_episode_length == 3
+    seen, rewards = [], []
+    original = env._control_step
+
+    def counted(*args):
+        seen.append(env.step_count)
+        rewards.append(original(*args))
+        return rewards[-1]
+
+    env._control_step = counted
+    action = torch.full((2, 12), 0.3)
+    for steps, done in ((3, False), (6, False), (7, True)):
+        first = len(rewards)
+        _, reward, dones, _ = env.step(action)
+        assert len(seen) == steps and bool(dones.all()) == done and np.allclose(env.action, 0.0 if done else 0.3)
+        np.testing.assert_allclose(reward.numpy(), sum(r for r, _, _ in rewards[first:]), rtol=1e-6)
+    assert seen == list(range(7)) and env.step_count == 0  # a new episode after the seventh step
+    assert env.episode_length_buf.tolist() == [0, 0]
+    with pytest.raises(ValueError, match="action_hold 0: expected at least 1"):
+        RecoveryTrainingEnv(TrainEnvConfig(num_envs=2, robot="go2", families=("flat",), action_hold=0))
+
+    run = TrainingRun(tmp_path / "held", "ppo", TrainEnvConfig(num_envs=2, robot="go2", randomize=False,
+                      families=("flat",), episode_steps=6, settle_steps=2, action_hold=3), total_steps=2 * 24 * 3,
+                      checkpoint_every=1)
+    assert run.steps_per_iteration == 2 * 24 * 3
+    run.train(progress_bar=False)
+    policy = load_policy(str(tmp_path / "held"))
+    spec = get_robot("go2")
+    policy.reset(spec, 2)
+    asked = []
+    decide = policy._decide
+    policy._decide = lambda obs: asked.append(policy.calls) or decide(obs)
+    obs = {"base_angvel": np.zeros((2, 3)), "projected_gravity": np.tile([0.0, 0.0, -1.0], (2, 1)),
+           "joint_pos": np.tile(spec.default_pose, (2, 1)), "joint_vel": np.zeros((2, 12)),
+           "previous_action": np.tile(spec.default_pose, (2, 1))}
+    targets = []
+    for k in range(7):
+        obs["joint_vel"] = np.full((2, 12), 0.1 * k)  # a new observation every call
+        targets.append(policy.act(obs))
+    assert asked == [0, 3, 6]
+    np.testing.assert_array_equal(targets[0], targets[2])
+    assert not np.array_equal(targets[2], targets[3])
+
+
 def test_train_refuses_to_overwrite_a_run(tmp_path):
     from frbench.training.run import TrainingRun
 

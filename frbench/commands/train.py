@@ -52,6 +52,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--rise-starts", type=float, default=0.0, metavar="FRACTION",
                    help="with --gate-residual: start this fraction of episodes where the base controller's gate "
                         "opened in a recorded run (the key frames' crouch), so that they exercise the rise")
+    p.add_argument("--action-hold", type=int, default=1, metavar="STEPS",
+                   help="the policy decides every STEPS control steps and holds its action in between (default 1); "
+                        "time-coherent exploration for a residual over key frames")
     p.add_argument("--motion-penalties", type=float, default=None, metavar="SCALE",
                    help="joint velocity/acceleration/torque penalties at SCALE x the paper's weights (new runs: "
                         "default 0.1; with --resume: a new reward stage from the run's current step)")
@@ -169,6 +172,8 @@ def run(args) -> int:
                 raise FrbenchError("--gate-phases needs --gate-residual (they name where the gate opens)")
         if args.gate_residual and not args.base_controller:
             raise FrbenchError("--gate-residual needs --base-controller (the gate is the base controller's)")
+        if args.action_hold < 1:
+            raise FrbenchError(f"--action-hold {args.action_hold}: expected at least 1 control step per decision")
         if args.init_std is not None and args.init_std <= 0:
             raise FrbenchError(f"--init-std {args.init_std}: expected a positive standard deviation")
         if args.action_scale is not None and args.action_scale <= 0:
@@ -197,7 +202,7 @@ def run(args) -> int:
             base_controller=args.base_controller, base_controller_parameters=controller_parameters,
             residual_gate=args.gate_residual, gate_phases=gate_phases, rise_start_fraction=args.rise_starts,
             demo_start_until=args.demo_until if args.demo_until is not None else args.steps / 2,
-            assist_force=args.assist_force,
+            assist_force=args.assist_force, action_hold=args.action_hold,
             assist_until=args.assist_until if args.assist_until is not None else args.steps / 2,
             **({"action_scale": args.action_scale} if args.action_scale is not None else {}),
         )

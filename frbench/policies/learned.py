@@ -82,6 +82,7 @@ class LearnedPolicy:
         self.base_controller_name = config["env"].get("base_controller")
         self.residual_gate = bool(config["env"].get("residual_gate", False))
         self.gate_phases = config["env"].get("gate_phases")  # None (runs before it existed): the default rise
+        self.action_hold = int(config["env"].get("action_hold", 1))  # control steps per decision
         self.long_frames = int(config["env"].get("long_history", 0)) if "long_history" in self.groups else 0
         actor_class = resolve_callable(actor_cfg.pop("class_name"))
         widths = deployable_group_widths(self.num_actions, self.frames, self.long_frames)
@@ -115,12 +116,24 @@ class LearnedPolicy:
         self.action = np.zeros((num_envs, spec.n_joints))
         self.history = None
         self.long_history = None
+        self.calls = 0  # `act` calls this episode: the policy decides on every ``action_hold``-th
         if self.base_controller is not None:
             self.base_controller.reset(spec, num_envs)
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         """Joint targets (N, J) [rad] from the proprioception dict: q̊ (or the base controller's targets,
-        for a residual policy) + action_scale · a."""
+        for a residual policy) + action_scale · a, with a new action a every ``action_hold`` calls (training's)."""
+        if self.calls % self.action_hold == 0:
+            self._decide(obs)
+        self.calls += 1
+        if self.base_controller is None:
+            return self.default_pose + self.action_scale * self.action
+        base = np.asarray(self.base_controller.act(obs))
+        return residual_targets(base, self.action, self.action_scale, self.base_controller, self.residual_gate,
+                                self.gate_phases)
+
+    def _decide(self, obs: dict[str, np.ndarray]) -> None:
+        """The next action a (N, J) from the observation and its histories (updated once per decision)."""
         o_t = flatten(obs, self.default_pose)
         o_t[:, -self.action.shape[1]:] = self.action
         if self.history is None:  # a new episode: the histories start filled with its first frame
@@ -137,11 +150,6 @@ class LearnedPolicy:
         with torch.inference_mode():
             action = self.actor(td).numpy().astype(np.float64)
         self.action = np.clip(action, -10.0, 10.0)
-        if self.base_controller is None:
-            return self.default_pose + self.action_scale * self.action
-        base = np.asarray(self.base_controller.act(obs))
-        return residual_targets(base, self.action, self.action_scale, self.base_controller, self.residual_gate,
-                                self.gate_phases)
 
 
 def load_learned_policy(data: dict, path: Path) -> LearnedPolicy:

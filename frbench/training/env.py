@@ -200,6 +200,11 @@ class TrainEnvConfig:
     #: recorded run from fresh fallen starts (the key frames' crouch), the controller in that phase, so that
     #: every such episode exercises the rise (0: off). Logged success rates count fresh fallen starts only.
     rise_start_fraction: float = 0.0
+    #: The policy decides every ``action_hold`` control steps and its action is held in between (1: every step);
+    #: the exploration noise then moves the targets for ``action_hold`` × 0.02 s at a time instead of averaging
+    #: out from one 0.02-s step to the next. Rewards are summed over the held steps; ``episode_steps`` stays in
+    #: control steps.
+    action_hold: int = 1
 
 
 def _yaw(quat: np.ndarray) -> np.ndarray:
@@ -219,7 +224,9 @@ class RecoveryTrainingEnv(VecEnv):
         self.grid = build_grid(cfg.families)
         self._setup_robots()
         self.num_actions = self.spec.n_joints
-        self.max_episode_length = cfg.episode_steps
+        if cfg.action_hold < 1:
+            raise ValueError(f"action_hold {cfg.action_hold}: expected at least 1 control step per decision")
+        self.max_episode_length = -(-cfg.episode_steps // cfg.action_hold)  # decisions per episode
         self.episode_length_buf = torch.zeros(n, dtype=torch.long)
         self.curriculum = TerrainCurriculum(n, self.rng, families=cfg.families, start_level=cfg.start_level)
         if not cfg.curriculum:
@@ -508,11 +515,47 @@ class RecoveryTrainingEnv(VecEnv):
 
     # ------------------------------------------------------------------ stepping
     def step(self, actions: torch.Tensor):
-        """One control step for every environment (rsl-rl `VecEnv.step`)."""
+        """One decision for every environment (rsl-rl `VecEnv.step`): the action held for
+        `TrainEnvConfig.action_hold` control steps (fewer if the episode ends first), their rewards summed."""
         n = self.num_envs
         action_prev2, action_prev = self.action_prev, self.action
         self.action_prev = action_prev
         self.action = np.clip(actions.detach().cpu().numpy().astype(np.float64), -10.0, 10.0)
+        reward, term_sums, held = np.zeros(n), {}, 0
+        while True:
+            step_reward, terms, alive = self._control_step(action_prev, action_prev2)
+            reward += step_reward
+            term_sums = {k: term_sums.get(k, 0.0) + v for k, v in terms.items()}
+            held += 1
+            action_prev2, action_prev = action_prev, self.action  # within a decision the action does not change
+            if held >= self.cfg_obj.action_hold or self.step_count >= self.cfg_obj.episode_steps:
+                break
+        self.episode_length_buf += 1
+        o_t = self._o_t()
+        self.history = np.concatenate([self.history[:, 1:], o_t[:, None, :]], axis=1)
+        if self.long_history is not None:
+            self.long_history = np.concatenate([self.long_history[:, 1:], o_t[:, None, :]], axis=1)
+        log = {f"/reward/{k}": float(np.mean(v[alive])) / held if alive.any() else 0.0 for k, v in term_sums.items()}
+        done = self.step_count >= self.cfg_obj.episode_steps
+        if done:
+            success = self.success.success.copy()
+            self.last_episode_stats = self._episode_stats(success, alive)
+            log.update({f"/episode/{k}": v for k, v in self.last_episode_stats.items()})
+            if self.cfg_obj.curriculum:  # the curriculum judges fallen starts only
+                fallen = np.flatnonzero(~self.from_demo)
+                self.curriculum.update(fallen, success[fallen])
+            log.update({f"/curriculum/{k}": float(v) for k, v in self.curriculum.stats().items()})
+            self._reset_all()
+            o_t = self._o_t()
+        obs = self._observations(o_t)
+        dones = torch.full((n,), bool(done))
+        extras = {"time_outs": torch.full((n,), bool(done)), "log": log}
+        return obs, torch.as_tensor(reward, dtype=torch.float32), dones, extras
+
+    def _control_step(self, action_prev: np.ndarray, action_prev2: np.ndarray):
+        """One control step with the current action: targets, physics, rewards (N,) and terms (name → (N,)),
+        success update; returns (reward, terms, alive (N,) bool)."""
+        n = self.num_envs
         if self.controller is None:
             targets = self.default_pose + self.cfg_obj.action_scale * self.action
         else:
@@ -546,27 +589,7 @@ class RecoveryTrainingEnv(VecEnv):
         ), alive=alive)
         self.step_count += 1
         self.env_steps += n
-        self.episode_length_buf += 1
-        o_t = self._o_t()
-        self.history = np.concatenate([self.history[:, 1:], o_t[:, None, :]], axis=1)
-        if self.long_history is not None:
-            self.long_history = np.concatenate([self.long_history[:, 1:], o_t[:, None, :]], axis=1)
-        log = {f"/reward/{k}": float(np.mean(v[alive])) if alive.any() else 0.0 for k, v in terms.items()}
-        done = self.step_count >= self.cfg_obj.episode_steps
-        if done:
-            success = self.success.success.copy()
-            self.last_episode_stats = self._episode_stats(success, alive)
-            log.update({f"/episode/{k}": v for k, v in self.last_episode_stats.items()})
-            if self.cfg_obj.curriculum:  # the curriculum judges fallen starts only
-                fallen = np.flatnonzero(~self.from_demo)
-                self.curriculum.update(fallen, success[fallen])
-            log.update({f"/curriculum/{k}": float(v) for k, v in self.curriculum.stats().items()})
-            self._reset_all()
-            o_t = self._o_t()
-        obs = self._observations(o_t)
-        dones = torch.full((n,), bool(done))
-        extras = {"time_outs": torch.full((n,), bool(done)), "log": log}
-        return obs, torch.as_tensor(reward, dtype=torch.float32), dones, extras
+        return reward, terms, alive
 
     def _sample_physics(self, n: int) -> PhysicsParams:
         """Gains, motor strength, friction and payload for ``n`` episodes. Sampled morphologies draw one Kp and

@@ -178,7 +178,8 @@ class TrainingRun:
         from rsl_rl.runners import OnPolicyRunner
 
         self.runner = OnPolicyRunner(self.env, json.loads(json.dumps(train_cfg)), log_dir=str(self.out), device="cpu")
-        self.steps_per_iteration = self.env.num_envs * train_cfg["num_steps_per_env"]
+        # control steps per iteration: each decision holds its action for `action_hold` steps
+        self.steps_per_iteration = self.env.num_envs * train_cfg["num_steps_per_env"] * self.env.cfg_obj.action_hold
         self.iteration, self.env_steps, self.wall = 0, 0, 0.0
         self.progress: list[dict] = []
         if resume and (self.out / RUNNER_FILE).is_file():
