@@ -473,6 +473,9 @@ def test_a_gated_residual_acts_only_in_the_base_controllers_rise(tmp_path):
                          base_controller="keyframe-humanoid", residual_gate=True, action_scale=0.1,
                          gate_phases=("tuck", "crouch", "rise", "hold"))
     run = TrainingRun(tmp_path / "g1", "ppo", cfg, total_steps=2 * 24, checkpoint_every=1)
+    with torch.inference_mode():  # a new residual starts as its base controller: mean action 0 everywhere
+        mean = run.runner.alg.actor(run.env.get_observations())
+    assert mean.shape == (2, 29) and float(mean.abs().max()) == 0.0
     run.train(progress_bar=False)
     policy = load_policy(str(tmp_path / "g1"))
     assert policy.residual_gate and list(policy.gate_phases) == ["tuck", "crouch", "rise", "hold"]

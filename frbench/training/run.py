@@ -184,6 +184,8 @@ class TrainingRun:
         self.progress: list[dict] = []
         if resume and (self.out / RUNNER_FILE).is_file():
             self._load_state()
+        elif env_cfg.base_controller:
+            zero_output_layer(self.runner.alg.actor)
         elif method == ADAPTATION_METHOD:
             self.runner.load(str(Path(config["teacher"]) / RUNNER_FILE))  # π, μ and normalisers, then frozen
 
@@ -279,6 +281,19 @@ class TrainingRun:
             bar.set_postfix(steps=f"{self.env_steps / 1e6:.2f}M", success=self.env.last_episode_stats.get("success_flat"))
         bar.close()
         draw_curve(self.progress, self.out / "curve.png", title=f"{self.method} ({self.out.name})")
+
+
+def zero_output_layer(actor) -> None:
+    """Zero the weights and bias of the actor network's last linear layer, so that a new residual policy's mean
+    action is 0 for every observation: it starts as its base controller exactly, and moves away only where
+    the policy gradient says so (residual policy learning, Silver et al. 2018). A random initial layer adds
+    about 0.01 rad of state-dependent offsets to key frames whose own search put them at an optimum."""
+    import torch
+
+    last = [m for m in actor.mlp.modules() if isinstance(m, torch.nn.Linear)][-1]
+    with torch.no_grad():
+        last.weight.zero_()
+        last.bias.zero_()
 
 
 def policy_checkpoint(method: str, config: dict, actor, iteration: int, env_steps: int, wall: float,
