@@ -179,6 +179,8 @@ def test_an_action_held_for_several_control_steps_is_one_decision_in_training_an
         _, reward, dones, _ = env.step(action)
         assert len(seen) == steps and bool(dones.all()) == done and np.allclose(env.action, 0.0 if done else 0.3)
         np.testing.assert_allclose(reward.numpy(), sum(r for r, _, _ in rewards[first:]), rtol=1e-6)
+        if not done:  # the next decision's a_{t-2} is this held action, not the one before it
+            assert np.allclose(env.action_prev, 0.3)
     assert seen == list(range(7)) and env.step_count == 0  # a new episode after the seventh step
     assert env.episode_length_buf.tolist() == [0, 0]
     with pytest.raises(ValueError, match="action_hold 0: expected at least 1"):

@@ -530,6 +530,8 @@ class RecoveryTrainingEnv(VecEnv):
             action_prev2, action_prev = action_prev, self.action  # within a decision the action does not change
             if held >= self.cfg_obj.action_hold or self.step_count >= self.cfg_obj.episode_steps:
                 break
+        if held > 1:  # the next decision's a_{t-2}: the control step before the last one held this action too
+            self.action_prev = self.action
         self.episode_length_buf += 1
         o_t = self._o_t()
         self.history = np.concatenate([self.history[:, 1:], o_t[:, None, :]], axis=1)
