@@ -11,6 +11,13 @@ BACKENDS = {
 }
 
 
+def training_backend_names() -> tuple[str, ...]:
+    """Every name `make_backend` accepts: the simulators and the split batch ``mujoco+pybullet``."""
+    from frbench.backends.split import SPLIT_NAME
+
+    return (*BACKENDS, SPLIT_NAME)
+
+
 def backend_class(name: str):
     """The backend class registered as ``name``."""
     import importlib
@@ -26,7 +33,15 @@ def make_backend(name: str, spec, num_envs: int, terrain=None, variants=None):
 
     ``variants`` (specs, assignment, frictions, payloads): per-simulation robots
     of the same structure (morphology randomisation); see `MujocoBackend`.
+    ``name`` may also be ``mujoco+pybullet`` (training only): the batch split between the two simulators
+    (`frbench.backends.split`).
     """
+    from frbench.backends.split import SPLIT_NAME, SplitBackend
+
+    if name == SPLIT_NAME:
+        return SplitBackend(spec, num_envs, terrain=terrain, variants=variants)
+    if name not in BACKENDS:
+        raise unknown_name("backend", name, training_backend_names())
     cls = backend_class(name)
     if variants is None:
         return cls(spec, num_envs, terrain=terrain)

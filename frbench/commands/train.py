@@ -18,7 +18,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--robots", default=None, help="train on one named robot instead of randomised morphologies")
     p.add_argument("--steps", type=float, default=None, help="env-step budget (default 20e6; with --resume: extend the budget)")
     p.add_argument("--envs", type=int, default=256, help="parallel environments")
-    p.add_argument("--backend", default="mujoco", help="mujoco (default) or pybullet")
+    p.add_argument("--backend", default=None, help="mujoco (default), pybullet, or mujoco+pybullet: "
+                   "half the environments in each simulator (with --resume: continue the run there, a new stage)")
     p.add_argument("--terrains", default=None, help="comma-separated families (default: all seven)")
     p.add_argument("--morphologies", type=int, default=32, help="distinct sampled robots per batch")
     p.add_argument("--no-curriculum", action="store_true", help="uniform random levels instead of the curriculum")
@@ -124,7 +125,8 @@ def morphology_range_changes(assignments: list[str]) -> dict[str, tuple[float, f
 
 def run(args) -> int:
     """Create (or resume) the run and train it to its budget."""
-    from frbench.errors import FrbenchError
+    from frbench.backends import training_backend_names
+    from frbench.errors import FrbenchError, unknown_name
     from frbench.policies.scripted_humanoid import DEFAULT_GATE_PHASES, gate_phase_ids
     from frbench.terrains import FAMILIES
     from frbench.training.env import TrainEnvConfig, training_reward_config
@@ -134,23 +136,21 @@ def run(args) -> int:
 
     command = "frbench " + " ".join(shlex.quote(a) for a in sys.argv[1:])
     weights = reward_weight_changes(args.motion_penalties, args.reward_weight)
+    if args.backend is not None and args.backend not in training_backend_names():
+        raise unknown_name("backend", args.backend, training_backend_names())
     ranges = morphology_range_changes(args.morphology_range)
     if args.resume:
         run_ = TrainingRun(args.resume, total_steps=int(args.steps) if args.steps else None, resume=True,
                            checkpoint_every=args.checkpoint_every, command=command, reward_stage=weights,
-                           morphology_stage=ranges)
+                           morphology_stage=ranges, backend_stage=args.backend)
     else:
         from frbench.training.run import ADAPTATION_METHOD
 
         if args.method not in METHODS and args.method != ADAPTATION_METHOD:
-            from frbench.errors import unknown_name
-
             raise unknown_name("training method", args.method, METHODS)
         families = tuple(f.strip() for f in args.terrains.split(",")) if args.terrains else FAMILIES
         for family in families:
             if family not in FAMILIES:
-                from frbench.errors import unknown_name
-
                 raise unknown_name("terrain", family, FAMILIES)
         args.steps = 20e6 if args.steps is None else args.steps
         if args.steps <= 0 or args.envs < 1 or args.settle_steps < 0:
@@ -195,7 +195,7 @@ def run(args) -> int:
         for term, weight in weights.items():
             reward = reward.with_weight(term, weight, f"set on the command line ({command})")
         env_cfg = TrainEnvConfig(
-            num_envs=args.envs, backend=args.backend, robot=args.robots, num_morphologies=args.morphologies,
+            num_envs=args.envs, backend=args.backend or "mujoco", robot=args.robots, num_morphologies=args.morphologies,
             episode_steps=args.episode_steps, settle_steps=args.settle_steps, families=families, curriculum=not args.no_curriculum,
             randomize=not args.no_randomize,
             reward=reward, morphology_ranges=ranges, seed=args.seed, demo_start_fraction=args.demo_starts,

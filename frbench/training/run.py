@@ -124,7 +124,7 @@ class TrainingRun:
     def __init__(self, out: Path, method: str | None = None, env_cfg=None, total_steps: int | None = None,
                  checkpoint_every: int = 20, command: str = "", resume: bool = False, teacher: Path | None = None,
                  reward_stage: dict[str, float] | None = None, morphology_stage: dict | None = None,
-                 train_overrides: dict | None = None):
+                 train_overrides: dict | None = None, backend_stage: str | None = None):
         """``method="rma-adaptation"`` is RMA's phase 2: ``teacher`` is a finished ``rma`` run folder whose
         policy is frozen while the adaptation module learns; its env config is reused (with a 50-frame
         long history), ``env_cfg`` is ignored.
@@ -133,7 +133,9 @@ class TrainingRun:
         current env step (e.g. the motion penalties at the paper's weights once the policy gets up). The
         changes and ``command`` are appended to ``config["stages"]``, so the checkpoint says which reward
         trained which steps. ``morphology_stage`` (with ``resume``), field → (low, high), likewise replaces rows
-        of the morphology table: the run's robots are redrawn from the new table. ``train_overrides`` (new runs)
+        of the morphology table: the run's robots are redrawn from the new table. ``backend_stage`` (with
+        ``resume``), a backend name, continues the run in that simulator (e.g. ``mujoco+pybullet``: a MuJoCo-trained
+        policy fine-tuned in both), recorded as a stage too. ``train_overrides`` (new runs)
         are merged into the method's rsl-rl config (e.g. ``{"actor": {"distribution_cfg": {"init_std": 0.2}}}``)
         and saved with it."""
         import torch
@@ -151,8 +153,9 @@ class TrainingRun:
             method, env_cfg = config["method"], env_cfg_from_dict(config["env"])
             total_steps = total_steps or config["total_steps"]
             train_cfg = config["train_cfg"]
-            if reward_stage or morphology_stage:
-                env_cfg = self._new_stage(config, env_cfg, reward_stage or {}, morphology_stage or {}, command)
+            if reward_stage or morphology_stage or (backend_stage and backend_stage != env_cfg.backend):
+                env_cfg = self._new_stage(config, env_cfg, reward_stage or {}, morphology_stage or {}, command,
+                                          backend_stage)
         else:
             if (self.out / CONFIG_FILE).exists():
                 raise FrbenchError(f"--out {self.out}: a run is already there; use --resume {self.out} or another name")
@@ -190,9 +193,10 @@ class TrainingRun:
             self.runner.load(str(Path(config["teacher"]) / RUNNER_FILE))  # π, μ and normalisers, then frozen
 
     # ------------------------------------------------------------------ persistence
-    def _new_stage(self, config: dict, env_cfg, weights: dict[str, float], morphology: dict, command: str):
-        """The env config with the reward ``weights`` and ``morphology`` ranges changed; records the stage in
-        ``config`` and rewrites config.json (see ``__init__``)."""
+    def _new_stage(self, config: dict, env_cfg, weights: dict[str, float], morphology: dict, command: str,
+                   backend: str | None = None):
+        """The env config with the reward ``weights``, ``morphology`` ranges and ``backend`` (None: unchanged)
+        changed; records the stage in ``config`` and rewrites config.json (see ``__init__``)."""
         import torch
 
         from frbench.robots.morphology import morphology_ranges
@@ -206,9 +210,11 @@ class TrainingRun:
         for term, weight in weights.items():
             reward = reward.with_weight(term, weight, f"reward stage from {steps} env steps ({command or 'resume'})")
         ranges = {**env_cfg.morphology_ranges, **{k: tuple(map(float, v)) for k, v in morphology.items()}}
-        env_cfg = dataclasses.replace(env_cfg, reward=reward, morphology_ranges=ranges)
+        env_cfg = dataclasses.replace(env_cfg, reward=reward, morphology_ranges=ranges, backend=backend or env_cfg.backend)
         config["env"] = _env_cfg_to_dict(env_cfg)
         stage = {"from_env_steps": steps, "weights": dict(weights), "command": command}
+        if backend:
+            stage["backend"] = backend
         if morphology:
             stage["morphology_ranges"] = {k: list(map(float, v)) for k, v in morphology.items()}
         config.setdefault("stages", []).append(stage)
