@@ -95,6 +95,9 @@ def test_a_mujoco_run_can_continue_in_both_simulators_as_a_stage(tmp_path):
     assert [p.num_envs for p in staged.env.backend.parts] == [2, 2]
     staged.train(progress_bar=False)
     assert staged.env_steps == 4 * 24 * 2
+    logged = json.loads((tmp_path / "run" / "progress.json").read_text())
+    assert "success_in_mujoco" not in logged[0]  # the MuJoCo-only iterations
+    assert 0.0 <= logged[-1]["success_in_mujoco"] <= 1.0 and 0.0 <= logged[-1]["success_in_pybullet"] <= 1.0
     config = json.loads((tmp_path / "run" / "config.json").read_text())
     assert config["env"]["backend"] == "mujoco+pybullet"
     assert config["stages"] == [{"from_env_steps": 96, "weights": {}, "backend": "mujoco+pybullet",

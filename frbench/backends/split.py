@@ -71,6 +71,10 @@ class SplitBackend:
                                      f"{first.name} {getattr(first, attr)!r}; the parts must simulate the same task")
         self.physics_dt, self.substeps, self.link_names = first.physics_dt, first.substeps, first.link_names
 
+    def part_rows(self) -> list[tuple[str, slice]]:
+        """(simulator name, its simulations' rows) of each part, in order."""
+        return [(part.name, rows) for part, rows in zip(self.parts, self.rows)]
+
     @property
     def diverged(self) -> np.ndarray:
         """(N,) bool: simulations whose state left the valid range (each part's flags, in order)."""

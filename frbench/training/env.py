@@ -615,8 +615,9 @@ class RecoveryTrainingEnv(VecEnv):
         self.backend.set_base_force(force)
 
     def _episode_stats(self, success: np.ndarray, alive: np.ndarray) -> dict[str, float]:
-        """Success rate of the episodes from fallen starts, overall and per family (all levels); the
-        diverged fraction; with demo starts, their share and their success rate."""
+        """Success rate of the episodes from fallen starts, overall, per family (all levels) and, on a split
+        backend, per simulator (``success_in_<simulator>``); the diverged fraction; with demo starts, their
+        share and their success rate."""
         fallen = ~self.from_demo
         stats = {"success_all": float(success[fallen].mean()) if fallen.any() else 0.0,
                  "diverged": float((~alive).mean()), "mean_level": float(self.curriculum.level.mean())}
@@ -629,6 +630,11 @@ class RecoveryTrainingEnv(VecEnv):
             mine = (self.curriculum.family == f) & fallen
             if mine.any():
                 stats[f"success_{family}"] = float(success[mine].mean())
+        for simulator, rows in getattr(self.backend, "part_rows", list)():
+            mine = np.zeros_like(fallen)
+            mine[rows] = fallen[rows]
+            if mine.any():
+                stats[f"success_in_{simulator}"] = float(success[mine].mean())
         return stats
 
     def close(self) -> None:
