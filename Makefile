@@ -41,6 +41,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/evaluation_throughput.py
 	$(BIN)/python benchmarks/terrain_throughput.py
 	$(BIN)/python benchmarks/training_throughput.py
+	$(BIN)/python benchmarks/split_training_throughput.py
 
 clean:
 	rm -rf $(VENV)
