@@ -113,3 +113,25 @@ def test_the_train_command_refuses_an_unknown_backend_before_writing_anything(tm
     assert main(["train", "--robots", "g1", "--backend", "mujoco+bullet", "--out", str(tmp_path / "bad")]) == 2
     assert "unknown backend 'mujoco+bullet'" in capsys.readouterr().err
     assert not (tmp_path / "bad").exists()
+
+
+def test_a_runs_policy_and_zero_actions_are_scored_in_its_training_env_per_simulator(tmp_path, capsys):
+    from frbench.analysis.training_env import training_env_success
+    from frbench.cli import main
+    from frbench.errors import FrbenchError
+    from frbench.training.env import TrainEnvConfig
+    from frbench.training.run import TrainingRun
+
+    cfg = TrainEnvConfig(num_envs=4, episode_steps=5, settle_steps=2, num_morphologies=2, families=("flat",))
+    TrainingRun(tmp_path / "run", "ppo", cfg, total_steps=4 * 24, checkpoint_every=1).train(progress_bar=False)
+    split = training_env_success(tmp_path / "run", 2, backend="mujoco+pybullet")
+    assert set(split) == {"success_all", "success_flat", "success_in_mujoco", "success_in_pybullet"}
+    assert all(0.0 <= v <= 1.0 for v in split.values())
+    # deterministic: same seed, same numbers; the run's own backend has no per-simulator rates
+    assert training_env_success(tmp_path / "run" / "policy.pt", 2, backend="mujoco+pybullet") == split
+    assert set(training_env_success(tmp_path / "run", 1, zero=True)) == {"success_all", "success_flat"}
+    with pytest.raises(FrbenchError, match="no training run's policy.pt"):
+        training_env_success(tmp_path / "nothing", 1)
+    assert main(["analyze-training-env", "--policy", str(tmp_path / "run"), "--episodes", "1", "--envs", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "zero actions" in out and "success_flat" in out

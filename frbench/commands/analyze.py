@@ -1,5 +1,6 @@
 """``frbench analyze-mcp`` (the Mass-Contact Predictor's mass errors and contact accuracy on unseen robots),
-``frbench analyze-stand`` (body contacts and fidgeting while a policy is up), ``frbench plot-results``
+``frbench analyze-stand`` (body contacts and fidgeting while a policy is up), ``frbench analyze-training-env`` (a
+run's deterministic policy against zero actions in its own training env, per simulator), ``frbench plot-results``
 (success against level per terrain family, from results files) and ``frbench compare`` (methods side by
 side, from results files)."""
 
@@ -10,7 +11,7 @@ from pathlib import Path
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    """Add ``analyze-mcp`` to the CLI."""
+    """Add the analysis commands to the CLI."""
     p = sub.add_parser("analyze-mcp", help="mass error and contact accuracy of a trained MCP on unseen robots")
     p.add_argument("--policy", required=True, help="run folder or policy.pt of an frnet-style method")
     p.add_argument("--robots", default="go2,go1,aliengo,spot_like,lite3_like", help="named robots to test")
@@ -31,6 +32,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     s.add_argument("--backends", default="mujoco,pybullet")
     s.add_argument("--out", type=Path, default=None, help="also write the report as JSON here")
     s.set_defaults(func=run_standing)
+
+    t = sub.add_parser("analyze-training-env", help="a run's deterministic policy beside zero actions (a residual's "
+                                                   "base controller alone) in the run's own training env, per simulator")
+    t.add_argument("--policy", required=True, help="training run folder or its policy.pt")
+    t.add_argument("--episodes", type=int, default=2, help="rounds: every environment runs one episode per round")
+    t.add_argument("--backend", default=None, help="default: the run's; e.g. mujoco+pybullet for both simulators")
+    t.add_argument("--envs", type=int, default=None, help="environments (default: the run's)")
+    t.add_argument("--seed", type=int, default=12345, help="the env's seed (starts, terrains)")
+    t.set_defaults(func=run_training_env)
 
     c = sub.add_parser("compare", help="methods side by side: level-10 success beside the paper's, MuJoCo vs "
                                        "PyBullet per family, displacement on level-10 stairs and slopes")
@@ -60,6 +70,19 @@ def run_standing(args) -> int:
     if args.out is not None:
         atomic_write_text(args.out, json.dumps(report, indent=1) + "\n")
         print(f"wrote {args.out}")
+    return 0
+
+
+def run_training_env(args) -> int:
+    """Print the run's success rates with its actor's mean action and with zero actions, side by side."""
+    from frbench.analysis.training_env import training_env_success
+
+    kwargs = {"backend": args.backend, "seed": args.seed, "num_envs": args.envs}
+    policy = training_env_success(args.policy, args.episodes, **kwargs)
+    zero = training_env_success(args.policy, args.episodes, zero=True, **kwargs)
+    print(f"{'success rate':24s} {'policy':>8s} {'zero actions':>13s}")
+    for key in policy:
+        print(f"{key:24s} {policy[key]:8.3f} {zero.get(key, float('nan')):13.3f}")
     return 0
 
 
