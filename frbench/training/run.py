@@ -153,9 +153,10 @@ class TrainingRun:
             method, env_cfg = config["method"], env_cfg_from_dict(config["env"])
             total_steps = total_steps or config["total_steps"]
             train_cfg = config["train_cfg"]
-            if reward_stage or morphology_stage or (backend_stage and backend_stage != env_cfg.backend):
+            new_backend = backend_stage if backend_stage and backend_stage != env_cfg.backend else None
+            if reward_stage or morphology_stage or new_backend:
                 env_cfg = self._new_stage(config, env_cfg, reward_stage or {}, morphology_stage or {}, command,
-                                          backend_stage)
+                                          new_backend)
         else:
             if (self.out / CONFIG_FILE).exists():
                 raise FrbenchError(f"--out {self.out}: a run is already there; use --resume {self.out} or another name")
