@@ -48,15 +48,11 @@ FAST_CONFIGS = ("frnet-short-episodes", "go2-demo-starts-assist")
 
 
 def make_config(name: str):
-    """The `TrainEnvConfig` of fingerprint ``name`` (a G1 gets the humanoid reward table)."""
+    """The `TrainEnvConfig` of fingerprint ``name`` (a G1 gets the humanoid reward table: the reference was recorded
+    with ``reward=humanoid_reward_config()`` given explicitly, before the config chose it by the robot's kind)."""
     from frbench.training.env import TrainEnvConfig
 
-    kwargs = dict(CONFIGS[name][0])
-    if kwargs.get("robot") == "g1":
-        from frbench.training.env import humanoid_reward_config
-
-        kwargs["reward"] = humanoid_reward_config()
-    return TrainEnvConfig(**kwargs)
+    return TrainEnvConfig(**CONFIGS[name][0])
 
 
 def _digest(obs, log: dict) -> bytes:

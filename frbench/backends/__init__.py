@@ -46,3 +46,13 @@ def make_backend(name: str, spec, num_envs: int, terrain=None, variants=None):
     if variants is None:
         return cls(spec, num_envs, terrain=terrain)
     return cls(spec, num_envs, terrain=terrain, variants=variants)
+
+
+def simulator_parts(backend) -> list[tuple[str, slice]]:
+    """(simulator name, its simulations' rows) of each simulator ``backend`` runs: the parts of a split
+    batch (`frbench.backends.split`), else one part with every row."""
+    from frbench.backends.split import SplitBackend
+
+    if isinstance(backend, SplitBackend):
+        return backend.part_rows()
+    return [(backend.name, slice(0, backend.num_envs))]

@@ -37,8 +37,8 @@ from typing import Protocol
 import numpy as np
 
 from frbench.robots.spec import RobotSpec
+from frbench.tasks.protocol import CONTROL_DT  # noqa: F401  (the protocol's control period [s], used by backends)
 
-CONTROL_DT = 0.02
 #: A state with |value| above this (m, rad, m/s, rad/s) is treated as diverged.
 DIVERGENCE_LIMIT = 1e3
 #: A link counts as in contact when its net contact force exceeds this [N].

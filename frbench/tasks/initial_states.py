@@ -21,6 +21,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from frbench.backends.self_collision import self_intersects
 from frbench.robots.kinematics import link_poses, lowest_point
 from frbench.robots.sim_urdf import sim_robot_file
 from frbench.robots.spec import RobotSpec
@@ -114,31 +115,6 @@ def fall_orientation(kind: str, robot_kind: str, yaw: float, rng: np.random.Gene
         base = lying[(robot_kind, kind)]
     tilt = _quat_multiply(_axis_quat(0, rng.uniform(-0.2, 0.2)), _axis_quat(1, rng.uniform(-0.2, 0.2)))
     return _quat_multiply(_axis_quat(2, yaw), _quat_multiply(base, tilt))
-
-
-@lru_cache(maxsize=32)
-def _self_collision_model(spec: RobotSpec):
-    """MuJoCo model and data of the robot alone, with the backends' self-collision exclusions."""
-    import mujoco
-
-    from frbench.backends.mujoco_model import build_model, joint_addresses
-    from frbench.terrains import make_terrain
-
-    model = build_model(spec, make_terrain("flat", 1, 0))
-    return model, mujoco.MjData(model), joint_addresses(model, spec)[0]
-
-
-def self_intersects(spec: RobotSpec, q: np.ndarray) -> bool:
-    """Whether two links of the robot overlap at joint angles ``q`` (MuJoCo's collision detection)."""
-    import mujoco
-
-    model, data, qadr = _self_collision_model(spec)
-    data.qpos[:] = model.qpos0
-    data.qpos[2] = 100.0  # far above the floor: only self-contacts remain
-    data.qpos[qadr] = q
-    mujoco.mj_kinematics(model, data)
-    mujoco.mj_collision(model, data)
-    return bool(np.any(data.contact.dist[: data.ncon] < 0))
 
 
 @lru_cache(maxsize=32)

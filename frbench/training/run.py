@@ -49,29 +49,14 @@ def _atomic_torch_save(obj, path: Path) -> None:
     os.replace(tmp, path)
 
 
-def _env_cfg_to_dict(cfg) -> dict:
-    out = {}
-    for key, value in dataclasses.asdict(cfg).items():
-        out[key] = list(value) if isinstance(value, tuple) else value
-    reward = cfg.reward
-    out["reward"] = {"weights": dict(reward.weights), "epsilon": reward.epsilon, "posture_sigma2": reward.posture_sigma2,
-                     "scale_by_dt": reward.scale_by_dt, "overrides_reason": dict(reward.overrides_reason)}
-    return out
+def env_cfg_from_dict(data: dict, source: str = "config.json"):
+    """A `TrainEnvConfig` from its JSON form (``source`` names the file in the error of a bad one)."""
+    from frbench.training.config import TrainEnvConfig
 
-
-def env_cfg_from_dict(data: dict):
-    """A `TrainEnvConfig` from its JSON form."""
-    from frbench.training.env import TrainEnvConfig
-    from frbench.training.rewards import RewardConfig
-
-    data = dict(data)
-    reward = data.pop("reward")
-    data["families"] = tuple(data["families"])
-    if "gate_phases" in data:
-        data["gate_phases"] = tuple(data["gate_phases"])
-    data["gain_ranges"] = {k: tuple(v) for k, v in data.get("gain_ranges", {}).items()}
-    data["morphology_ranges"] = {k: tuple(v) for k, v in data.get("morphology_ranges", {}).items()}
-    return TrainEnvConfig(**data, reward=RewardConfig(**reward))
+    try:
+        return TrainEnvConfig.from_dict(data)
+    except (TypeError, ValueError) as exc:
+        raise FrbenchError(f"{source}: env: {exc}") from None
 
 
 #: RMA's phase 2 as a method name (`frbench train --method rma-adaptation --teacher runs/rma`).
@@ -92,7 +77,7 @@ def _adaptation_setup(teacher: Path | None):
         raise FrbenchError(f"--teacher {teacher}: a {teacher_config['method']!r} run; RMA's phase 2 needs an 'rma' run")
     train_cfg = make_rma_adaptation_cfg()
     frames = int(train_cfg["actor"]["adaptation_frames"])
-    env_cfg = dataclasses.replace(env_cfg_from_dict(teacher_config["env"]), long_history=frames)
+    env_cfg = dataclasses.replace(env_cfg_from_dict(teacher_config["env"], str(config_path)), long_history=frames)
     return env_cfg, train_cfg
 
 
@@ -150,7 +135,7 @@ class TrainingRun:
             if not config_path.is_file():
                 raise FrbenchError(f"--resume {self.out}: no {CONFIG_FILE} there; is it a training run folder?")
             config = json.loads(config_path.read_text())
-            method, env_cfg = config["method"], env_cfg_from_dict(config["env"])
+            method, env_cfg = config["method"], env_cfg_from_dict(config["env"], str(config_path))
             total_steps = total_steps or config["total_steps"]
             train_cfg = config["train_cfg"]
             new_backend = backend_stage if backend_stage and backend_stage != env_cfg.backend else None
@@ -164,7 +149,7 @@ class TrainingRun:
                 env_cfg, train_cfg = _adaptation_setup(teacher)
             else:
                 train_cfg = make_train_cfg(method, train_overrides)
-            config = {"method": method, "env": _env_cfg_to_dict(env_cfg), "train_cfg": train_cfg,
+            config = {"method": method, "env": env_cfg.to_dict(), "train_cfg": train_cfg,
                       "total_steps": total_steps, "command": command}
             if teacher is not None:
                 config["teacher"] = str(teacher)
@@ -212,7 +197,7 @@ class TrainingRun:
             reward = reward.with_weight(term, weight, f"reward stage from {steps} env steps ({command or 'resume'})")
         ranges = {**env_cfg.morphology_ranges, **{k: tuple(map(float, v)) for k, v in morphology.items()}}
         env_cfg = dataclasses.replace(env_cfg, reward=reward, morphology_ranges=ranges, backend=backend or env_cfg.backend)
-        config["env"] = _env_cfg_to_dict(env_cfg)
+        config["env"] = env_cfg.to_dict()
         stage = {"from_env_steps": steps, "weights": dict(weights), "command": command}
         if backend:
             stage["backend"] = backend

@@ -1,0 +1,228 @@
+"""`TrainEnvConfig`: the training environment's settings, frozen, validated, saved in every run.
+
+A config is built once (by `frbench train`, a preset, a test) and never
+changed: ``dataclasses.replace`` makes a new one, validated again. It checks
+itself in ``__post_init__`` (ValueError naming the field and what was
+expected), so a bad value fails before a simulator starts, whoever builds it.
+The reward table defaults to the robot kind's (`rewards.reward_table`): a G1
+trains on the humanoid table without anyone asking for it.
+
+``to_dict``/``from_dict`` are its JSON form in a run's ``config.json`` and in
+every policy checkpoint; ``from_dict`` reads the files of older runs too
+(fields added since take their defaults; `RENAMED_FIELDS` maps renamed ones).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Mapping
+
+from frbench.policies.scripted_humanoid import DEFAULT_GATE_PHASES
+from frbench.terrains import FAMILIES
+from frbench.training.rewards import RewardConfig
+
+#: Gain ranges of frbench's training (the paper: Kp [20, 80], Kd [0.6, 2.0]); see docs/training.md.
+TRAINING_GAIN_RANGES = MappingProxyType({"kp": (50.0, 80.0), "kd": (1.0, 2.0)})
+GAIN_RANGE_REASON = (
+    "robots sampled from the paper's morphology table weigh 21-35 kg (6 of 6 in a check); with Kp 20 every one "
+    "sinks 40-65 % below its standing height and touches the ground with its body, with Kp 80 every one stands, "
+    "so Kp < 50 makes most episodes impossible to win"
+)
+#: Old config.json field name → its current name (none renamed so far: every field kept its name).
+RENAMED_FIELDS: Mapping[str, str] = MappingProxyType({})
+#: The largest assist force, as a fraction of the robot's weight.
+MAX_ASSIST_FRACTION = 2.0
+
+
+def _frozen_ranges(ranges) -> MappingProxyType:
+    return MappingProxyType({str(k): tuple(float(x) for x in v) for k, v in dict(ranges).items()})
+
+
+@dataclass(frozen=True)
+class TrainEnvConfig:
+    """Training environment settings (saved in every checkpoint); see the module docstring."""
+
+    num_envs: int = 256
+    #: ``mujoco``, ``pybullet`` or ``mujoco+pybullet`` (half the batch in each simulator).
+    backend: str = "mujoco"
+    robot: str | None = None  # None: randomised morphologies
+    num_morphologies: int = 32
+    #: Episode length and the fallen start's settle on soft gains, in control steps (0.02 s).
+    episode_steps: int = 350
+    settle_steps: int = 25
+    action_scale: float = 1.0  # the paper's q* = q̊ + a
+    families: tuple[str, ...] = FAMILIES
+    curriculum: bool = True
+    start_level: int = 1
+    randomize: bool = True
+    gain_ranges: Mapping[str, tuple[float, float]] = field(default_factory=lambda: TRAINING_GAIN_RANGES)
+    #: Rows of the paper's morphology table replaced for this run, field → (low, high) [kg or m]
+    #: (``morphology.morphology_ranges``); empty: the paper's table.
+    morphology_ranges: Mapping[str, tuple[float, float]] = field(default_factory=lambda: MappingProxyType({}))
+    #: The reward table; None: the robot kind's (`rewards.reward_table`), filled in at construction.
+    reward: RewardConfig | None = None
+    history: int = 5
+    #: Frames of the ``long_history`` group (RMA's adaptation module reads 50); 0: no such group.
+    long_history: int = 0
+    seed: int = 0
+    #: Starting states along a getting-up motion (`start_sources.DemoStarts`): the fraction of episodes that
+    #: start from a recorded ``scripted`` state, falling linearly to 0 at ``demo_start_until`` env steps (0: off).
+    demo_start_fraction: float = 0.0
+    demo_start_until: float = 0.0
+    #: Re-record the bank every this many episodes, from ``demo_steps`` control steps, one snapshot per ``demo_stride``.
+    demo_refresh_episodes: int = 10
+    demo_steps: int = 300
+    demo_stride: int = 5
+    #: A vertical assist force on the base (`assist.AssistForce`), as a fraction of the robot's weight, falling
+    #: linearly to 0 at ``assist_until`` env steps (0: off); HoST's way of making getting up cheap to learn.
+    #: Never in evaluation.
+    assist_force: float = 0.0
+    assist_until: float = 0.0
+    #: A policy name (e.g. ``"scripted-humanoid"``) whose joint targets the learned action is added to
+    #: (`residual.ResidualController`): q* = base(o) + action_scale·a; None: q* = q̊ + action_scale·a.
+    base_controller: str | None = None
+    #: The base controller's tunable parameters at the start of the run (name → value; empty: it has none).
+    base_controller_parameters: Mapping[str, float] = field(default_factory=lambda: MappingProxyType({}))
+    #: Gated residual: q* = base(o) + gate·action_scale·a with the base controller's ``residual_gate()`` (N,)
+    #: (``keyframe-humanoid``: 1 in its rise, 0 before), so exploration cannot break the motion before the rise.
+    residual_gate: bool = False
+    #: The base controller's phases in which the gated residual acts (names, `scripted_humanoid.PHASE_NAMES`);
+    #: the default is the rise (crouch, rise, hold); the sit-up's ``tuck``, ``prop``, ``rock`` may be added.
+    gate_phases: tuple[str, ...] = DEFAULT_GATE_PHASES
+    #: With a gated residual: this fraction of episodes starts where the base controller opened its gate in a
+    #: recorded run from fresh fallen starts (`start_sources.RiseStarts`), the controller in that phase (0: off).
+    #: Logged success rates count fresh fallen starts only.
+    rise_start_fraction: float = 0.0
+    #: The policy decides every ``action_hold`` control steps and its action is held in between
+    #: (`action_hold.HeldAction`; 1: every step). Rewards are summed over the held steps; ``episode_steps``
+    #: stays in control steps.
+    action_hold: int = 1
+
+    def __post_init__(self) -> None:
+        def set_(name: str, value) -> None:
+            object.__setattr__(self, name, value)
+
+        set_("families", tuple(self.families))
+        set_("gate_phases", tuple(self.gate_phases))
+        set_("gain_ranges", _frozen_ranges(self.gain_ranges))
+        set_("morphology_ranges", _frozen_ranges(self.morphology_ranges))
+        set_("base_controller_parameters",
+             MappingProxyType({str(k): v for k, v in dict(self.base_controller_parameters).items()}))
+        self._validate()
+        if self.reward is None:
+            from frbench.training.rewards import reward_table
+
+            set_("reward", reward_table(self.robot_kind()))
+
+    def robot_kind(self) -> str:
+        """``"quadruped"`` (randomised morphologies, or a named quadruped) or ``"humanoid"``."""
+        if not self.robot:
+            return "quadruped"
+        from frbench.robots import get_robot
+
+        return get_robot(self.robot).kind
+
+    def _validate(self) -> None:
+        from frbench.backends import training_backend_names
+
+        def need(ok: bool, name: str, expected: str) -> None:
+            if not ok:
+                raise ValueError(f"{name} {getattr(self, name)!r}: expected {expected}")
+
+        need(self.num_envs >= 1, "num_envs", "at least 1 environment")
+        need(self.backend in training_backend_names(), "backend", f"one of {', '.join(training_backend_names())}")
+        need(self.num_morphologies >= 1, "num_morphologies", "at least 1 robot")
+        need(self.episode_steps >= 1, "episode_steps", "at least 1 control step")
+        need(self.settle_steps >= 0, "settle_steps", "at least 0 control steps")
+        need(self.action_scale > 0, "action_scale", "a positive number")
+        need(len(self.families) > 0 and all(f in FAMILIES for f in self.families), "families",
+             f"terrain families among {', '.join(FAMILIES)}")
+        need(1 <= self.start_level <= 10, "start_level", "a level in 1-10")
+        need(self.history >= 1, "history", "at least 1 frame")
+        need(self.long_history >= 0, "long_history", "at least 0 frames")
+        need(0.0 <= self.demo_start_fraction <= 1.0, "demo_start_fraction", "a fraction in [0, 1]")
+        need(self.demo_refresh_episodes >= 1, "demo_refresh_episodes", "at least 1 episode")
+        need(1 <= self.demo_stride <= max(1, self.demo_steps), "demo_stride", "1 to demo_steps control steps")
+        need(0.0 <= self.assist_force <= MAX_ASSIST_FRACTION, "assist_force",
+             f"a fraction of the weight in [0, {MAX_ASSIST_FRACTION:g}]")
+        need(self.action_hold >= 1, "action_hold", "at least 1 control step per decision")
+        need(0.0 <= self.rise_start_fraction <= 1.0, "rise_start_fraction", "a fraction in [0, 1]")
+        need(not self.residual_gate or bool(self.base_controller), "residual_gate",
+             "a base_controller (the gate is the base controller's)")
+        need(self.rise_start_fraction == 0.0 or self.residual_gate, "rise_start_fraction",
+             "residual_gate (the rise starts where the gate opens)")
+        need(self.gate_phases == DEFAULT_GATE_PHASES or self.residual_gate, "gate_phases",
+             "residual_gate (the phases name where the gate opens)")
+        if self.residual_gate:
+            from frbench.policies.scripted_humanoid import gate_phase_ids
+
+            try:
+                gate_phase_ids(self.gate_phases)
+            except ValueError as exc:
+                raise ValueError(f"gate_phases {self.gate_phases!r}: {exc}") from None
+        for name in ("gain_ranges", "morphology_ranges"):
+            for key, (low, high) in getattr(self, name).items():
+                if not low <= high:
+                    raise ValueError(f"{name}[{key!r}] ({low}, {high}): expected low <= high")
+        if self.morphology_ranges:
+            from frbench.robots.morphology import morphology_ranges
+
+            morphology_ranges(dict(self.morphology_ranges))  # ValueError naming an unknown field or a bad range
+
+    # ------------------------------------------------------------------ JSON form
+    def to_dict(self) -> dict:
+        """The JSON form (lists for tuples, plain dicts for mappings, the reward table's fields)."""
+        out = {}
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, tuple):
+                value = list(value)
+            elif isinstance(value, Mapping):
+                value = {k: (list(v) if isinstance(v, tuple) else v) for k, v in value.items()}
+            out[f.name] = value
+        reward = self.reward
+        out["reward"] = {"weights": dict(reward.weights), "epsilon": reward.epsilon,
+                         "posture_sigma2": reward.posture_sigma2, "scale_by_dt": reward.scale_by_dt,
+                         "overrides_reason": dict(reward.overrides_reason)}
+        return out
+
+    @classmethod
+    def from_dict(cls, data: Mapping) -> "TrainEnvConfig":
+        """A config from its JSON form (`to_dict`), including those of older runs (`RENAMED_FIELDS`)."""
+        data = {RENAMED_FIELDS.get(k, k): v for k, v in dict(data).items()}
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise ValueError(f"training env config: unknown fields {unknown}")
+        if data.get("reward") is not None:
+            data["reward"] = RewardConfig(**data["reward"])
+        return cls(**data)
+
+
+def parse_field(name: str, text: str):
+    """The value of config field ``name`` written as ``text`` on a command line (``--set NAME=TEXT``): numbers,
+    ``true``/``false``, ``none``, comma-separated names for tuples, NAME=LOW,HIGH pairs are not accepted here."""
+    types = {f.name: f.type for f in dataclasses.fields(TrainEnvConfig)}
+    if name not in types or name in ("reward", "gain_ranges", "morphology_ranges", "base_controller_parameters"):
+        settable = sorted(set(types) - {"reward", "gain_ranges", "morphology_ranges", "base_controller_parameters"})
+        raise ValueError(f"--set {name}: not a settable field; expected one of {', '.join(settable)}")
+    kind = str(types[name])
+    text = text.strip()
+    if "None" in kind and text.lower() in ("none", ""):
+        return None
+    if kind.startswith("tuple"):
+        return tuple(part.strip() for part in text.split(",") if part.strip())
+    if kind == "bool":
+        if text.lower() not in ("true", "false", "1", "0"):
+            raise ValueError(f"--set {name}={text}: expected true or false")
+        return text.lower() in ("true", "1")
+    try:
+        if kind == "int":
+            return int(text)
+        if kind == "float":
+            return float(text)
+    except ValueError:
+        raise ValueError(f"--set {name}={text}: expected a number ({kind})") from None
+    return text

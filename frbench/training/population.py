@@ -1,0 +1,156 @@
+"""The training batch's robots: which robot each environment simulates, and its physics per episode.
+
+Either one named robot (``TrainEnvConfig.robot``) in every environment, or
+``num_morphologies`` robots sampled from the paper's morphology table (those
+that cannot stand at the lowest training gains are redrawn), assigned to the
+N environments in a shuffled round robin. Per robot variant a friction and a
+payload are drawn once (the backend compiles them in); per episode the gains,
+motor strength and motor friction are redrawn (`episode_params`).
+
+Ground truth from Pinocchio: group masses (the estimator's labels, payload on
+the base), the whole-body CoM and, for humanoids, the head position.
+Shapes: N environments, J joints, G mass groups.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from frbench.backends.base import PhysicsParams, RobotState
+from frbench.robots import get_robot, ground_truth
+from frbench.training.feasibility import can_stand
+from frbench.training.randomization import CONTROL_RANGES, morphology_spec, sample_morphologies, sample_physics
+
+#: A named robot's own per-joint Kp and Kd are multiplied by one factor per episode drawn from this range.
+NAMED_ROBOT_GAIN_FACTORS = (0.9, 1.1)
+#: The humanoid's "head": a point this far [m] above the torso link's origin along its z axis (the G1's head
+#: centre stands about 1.23 m above flat ground in the default pose).
+HEAD_FRAME, HEAD_OFFSET_M = "torso_link", 0.40
+#: Joint-name fragments of a humanoid's legs; every other joint belongs to the upper body (waist, arms).
+LEG_JOINT_WORDS = ("hip", "knee", "ankle")
+
+
+def yaw_of(quat: np.ndarray) -> np.ndarray:
+    """Yaw [rad] (N,) of quaternions (N, 4) wxyz."""
+    w, x, y, z = quat.T
+    return np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+
+class TrainingRobots:
+    """The robots of a batch of ``cfg.num_envs`` environments (see the module docstring), drawn from ``rng``.
+
+    Attributes: ``specs`` (K robots), ``spec`` (the first: joint order, limits, default pose), ``assignment``
+    (N,) index into ``specs``, ``variants`` (the backend's per-simulation robots, or None), ``env_masses``
+    (N, G) [kg], ``env_friction`` (N,), ``env_payload`` (N,) [kg], ``nominal_height`` (N,) [m],
+    ``upper_body`` (J,) bool, ``nominal_head_height`` [m] (humanoids); with sampled morphologies also
+    ``morphologies`` and ``rejected`` (redrawn ones).
+    """
+
+    def __init__(self, cfg, rng: np.random.Generator):
+        self.cfg, self.rng = cfg, rng
+        n = cfg.num_envs
+        specs = [get_robot(cfg.robot)] if cfg.robot else self._feasible_morphologies()
+        self.specs = specs
+        self.spec = specs[0]
+        self.assignment = np.arange(n) % len(specs)
+        self.rng.shuffle(self.assignment)
+        k = len(specs)
+        if cfg.randomize:
+            variant_physics = sample_physics(self.spec, k, self.rng)
+            self.variant_friction, self.variant_payload = variant_physics.friction, variant_physics.payload
+        else:
+            self.variant_friction, self.variant_payload = np.ones(k), np.zeros(k)
+        self.variants = (specs, self.assignment, self.variant_friction, self.variant_payload) if k > 1 or cfg.randomize else None
+        masses = np.array([ground_truth.group_masses(s) for s in specs])
+        masses[:, 0] += self.variant_payload  # the payload sits on the base
+        self.env_masses = masses[self.assignment]
+        self.env_friction = self.variant_friction[self.assignment]
+        self.env_payload = self.variant_payload[self.assignment]
+        self.nominal_height = np.array([s.nominal_height for s in specs])[self.assignment]
+        self._pin = [ground_truth.load(s) for s in specs]
+        self._pin_data = [p.model.createData() for p in self._pin]
+        self.humanoid = self.spec.kind == "humanoid"
+        self.upper_body = np.array([not any(w in name for w in LEG_JOINT_WORDS) for name in self.spec.joint_names])
+        if self.humanoid:
+            standing = RobotState.standing(self.spec, 1, clearance=0.0)
+            self.nominal_head_height = float(self.head_positions(standing, [0])[0, 2])
+
+    def _feasible_morphologies(self) -> list:
+        """``num_morphologies`` sampled robots (CoM shift applied when randomising) that can stand at the lowest
+        training gains (`feasibility.can_stand`); the others are redrawn and counted in ``self.rejected``.
+        Their parameters are kept in ``self.morphologies``."""
+        cfg = self.cfg
+        kp, kd = cfg.gain_ranges.get("kp", CONTROL_RANGES["kp"])[0], cfg.gain_ranges.get("kd", CONTROL_RANGES["kd"])[0]
+        specs, self.morphologies, self.rejected = [], [], 0
+        while len(specs) < cfg.num_morphologies:
+            morphology = sample_morphologies(1, self.rng, ranges=dict(cfg.morphology_ranges))[0]
+            if cfg.randomize:  # the paper's CoM shift, baked into the morphology's trunk inertial
+                shift = self.rng.uniform(*CONTROL_RANGES["com_shift"], size=3)
+                morphology = dataclasses.replace(morphology, trunk_com_shift=tuple(map(float, shift)))
+            spec = morphology_spec(morphology, f"morph{len(specs):04d}")
+            if can_stand(spec, kp, kd):
+                specs.append(spec)
+                self.morphologies.append(morphology)
+            else:
+                self.rejected += 1
+            if self.rejected > 20 * cfg.num_morphologies:
+                raise ValueError(f"{self.rejected} sampled morphologies could not stand at Kp {kp}, Kd {kd}; "
+                                 "raise the gain range")
+        return specs
+
+    def sample_physics(self, n: int) -> PhysicsParams:
+        """Gains, motor strength, friction and payload for ``n`` episodes. Sampled morphologies draw one Kp and
+        Kd for all joints from the training's absolute range (they have no gains of their own); a named robot
+        (``cfg.robot``) keeps its own per-joint gains, scaled by one factor per episode from
+        `NAMED_ROBOT_GAIN_FACTORS` — one Kp of 50-80 N·m/rad would replace the G1's 40-200 per joint."""
+        cfg = self.cfg
+        ranges = {**CONTROL_RANGES, **cfg.gain_ranges}
+        if not cfg.robot:
+            return sample_physics(self.spec, n, self.rng, ranges=ranges)
+        params = sample_physics(self.spec, n, self.rng, ranges={k: v for k, v in ranges.items() if k not in ("kp", "kd")})
+        params.kp = params.kp * self.rng.uniform(*NAMED_ROBOT_GAIN_FACTORS, size=(n, 1))
+        params.kd = params.kd * self.rng.uniform(*NAMED_ROBOT_GAIN_FACTORS, size=(n, 1))
+        return params
+
+    def episode_params(self) -> PhysicsParams:
+        """The physics of the next episode of every environment: randomised (`sample_physics`, the variants'
+        friction and payload, a motor friction) or the spec's nominal values."""
+        n = self.cfg.num_envs
+        if not self.cfg.randomize:
+            return PhysicsParams.nominal(self.spec, n)
+        params = self.sample_physics(n)
+        params.friction, params.payload = self.env_friction.copy(), self.env_payload.copy()
+        params.motor_friction = self.rng.uniform(*CONTROL_RANGES["motor_friction"], size=(n, self.spec.n_joints))
+        return params
+
+    def com_xy(self, state: RobotState) -> np.ndarray:
+        """Whole-body CoM minus base position, in the base yaw frame, (N, 2) [m] (Pinocchio)."""
+        import pinocchio
+
+        s = state
+        out = np.zeros((len(s.base_pos), 2))
+        for i in range(len(s.base_pos)):
+            k = self.assignment[i]
+            config = ground_truth.configuration(self._pin[k], s.base_pos[i], s.base_quat[i], s.q[i])
+            out[i] = np.asarray(pinocchio.centerOfMass(self._pin[k].model, self._pin_data[k], config))[:2]
+        delta = out - s.base_pos[:, :2]
+        yaw = yaw_of(s.base_quat)
+        c, si = np.cos(yaw), np.sin(yaw)
+        return np.stack([c * delta[:, 0] + si * delta[:, 1], -si * delta[:, 0] + c * delta[:, 1]], axis=1)
+
+    def head_positions(self, state: RobotState, rows=None) -> np.ndarray:
+        """World head positions (M, 3) [m] of the robots in ``rows`` (default all; ``state`` has M rows), by Pinocchio."""
+        import pinocchio
+
+        rows = range(len(self.assignment)) if rows is None else rows
+        out = np.zeros((len(state.base_pos), 3))
+        for m, i in enumerate(rows):
+            robot = self._pin[self.assignment[i]]
+            data = self._pin_data[self.assignment[i]]
+            config = ground_truth.configuration(robot, state.base_pos[m], state.base_quat[m], state.q[m])
+            pinocchio.framesForwardKinematics(robot.model, data, config)
+            frame = data.oMf[robot.model.getFrameId(HEAD_FRAME)]
+            out[m] = frame.translation + frame.rotation[:, 2] * HEAD_OFFSET_M
+        return out
