@@ -17,7 +17,7 @@ from frbench.policies.keyframe_humanoid import (
     decode,
     load_parameters,
 )
-from frbench.policies.keyframe_search import (
+from tools.keyframe_search import (
     episode_scores,
     non_prone_starts,
     roll_scores,
@@ -112,7 +112,7 @@ def test_prone_starts_are_the_rest():
 def test_a_prone_stage_search_tunes_only_the_way_into_the_crouch_in_both_backends(tmp_path):
     """Two generations of two candidates, 5 control steps in MuJoCo and PyBullet from one prone start: the file
     it writes keeps every parameter outside `PRONE_PARAMETERS` at ``--init`` and names both backends' starts."""
-    from frbench.policies.keyframe_search import PRONE_PARAMETERS, main
+    from tools.keyframe_search import PRONE_PARAMETERS, main
 
     assert len(PRONE_PARAMETERS) == 30 and "ramp.lift" in PRONE_PARAMETERS and "ramp.rise" not in PRONE_PARAMETERS
     assert not any(n.startswith(("roll", "fb.", "stand.")) for n in PRONE_PARAMETERS)
@@ -224,7 +224,7 @@ def test_the_residual_gate_opens_in_the_named_phases_only():
 def test_a_supine_stage_search_tunes_only_the_sit_up_with_one_try(tmp_path):
     """Two generations of two candidates, 5 control steps in MuJoCo from the supine starts of seed 4: the file
     keeps every parameter outside `SUPINE_PARAMETERS` at ``--init`` except ``situp.tries``, which is 1."""
-    from frbench.policies.keyframe_search import SUPINE_PARAMETERS, main
+    from tools.keyframe_search import SUPINE_PARAMETERS, main
 
     assert len(SUPINE_PARAMETERS) == 48 and {"ramp.tuck", "sit_fb.kc_hip", "ramp.sit_rise"} <= set(SUPINE_PARAMETERS)
     assert not {"situp.tries", "fb.kc_hip", "stand.knee", "ramp.rise"} & set(SUPINE_PARAMETERS)
@@ -245,7 +245,7 @@ def test_a_supine_stage_search_tunes_only_the_sit_up_with_one_try(tmp_path):
 
 
 def test_extra_parameters_by_name_or_prefix_and_a_clear_error_otherwise():
-    from frbench.policies.keyframe_search import SUPINE_PARAMETERS, extra_parameters
+    from tools.keyframe_search import SUPINE_PARAMETERS, extra_parameters
 
     assert extra_parameters("stand.,ramp.rise", SUPINE_PARAMETERS) == (
         "stand.hip_pitch", "stand.knee", "stand.ankle_pitch", "ramp.rise")
@@ -413,7 +413,7 @@ def test_late_ups_earn_less_the_later_they_are():
 
 
 def test_a_pooled_rise_search_scores_the_mean_over_backends():
-    from frbench.policies.keyframe_search import PooledEvaluator
+    from tools.keyframe_search import PooledEvaluator
 
     class Fake:
         def __init__(self, score, n):

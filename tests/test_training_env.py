@@ -9,12 +9,8 @@ import pytest
 import torch
 
 from frbench.errors import FrbenchError, PolicyError
-from frbench.training.env import (
-    RecoveryTrainingEnv,
-    TrainEnvConfig,
-    training_reward_config,
-)
-from frbench.training.rewards import PAPER_WEIGHTS
+from frbench.training.env import RecoveryTrainingEnv, TrainEnvConfig
+from frbench.training.rewards import PAPER_WEIGHTS, training_reward_config
 
 
 @pytest.fixture(scope="module")
@@ -177,14 +173,14 @@ def test_an_action_held_for_several_control_steps_is_one_decision_in_training_an
     for steps, done in ((3, False), (6, False), (7, True)):
         first = len(rewards)
         _, reward, dones, _ = env.step(action)
-        assert len(seen) == steps and bool(dones.all()) == done and np.allclose(env.action, 0.0 if done else 0.3)
+        assert len(seen) == steps and bool(dones.all()) == done and np.allclose(env.actions.current, 0.0 if done else 0.3)
         np.testing.assert_allclose(reward.numpy(), sum(r for r, _, _ in rewards[first:]), rtol=1e-6)
         if not done:  # the next decision's a_{t-2} is this held action, not the one before it
-            assert np.allclose(env.action_prev, 0.3)
+            assert np.allclose(env.actions.previous, 0.3)
     assert seen == list(range(7)) and env.step_count == 0  # a new episode after the seventh step
     assert env.episode_length_buf.tolist() == [0, 0]
     with pytest.raises(ValueError, match="action_hold 0: expected at least 1"):
-        RecoveryTrainingEnv(TrainEnvConfig(num_envs=2, robot="go2", families=("flat",), action_hold=0))
+        TrainEnvConfig(num_envs=2, robot="go2", families=("flat",), action_hold=0)
 
     run = TrainingRun(tmp_path / "held", "ppo", TrainEnvConfig(num_envs=2, robot="go2", randomize=False,
                       families=("flat",), episode_steps=6, settle_steps=2, action_hold=3), total_steps=2 * 24 * 3,
@@ -220,11 +216,11 @@ def test_train_refuses_to_overwrite_a_run(tmp_path):
 def test_a_humanoid_residual_policy_trains_and_adds_its_action_to_the_base_controller(tmp_path):
     from frbench.policies.registry import load_policy
     from frbench.robots import get_robot
-    from frbench.training.env import humanoid_reward_config
     from frbench.training.run import TrainingRun
 
+    # no reward given: the library picks the humanoid table by the robot's kind
     cfg = TrainEnvConfig(num_envs=2, robot="g1", randomize=False, families=("flat",), episode_steps=4, settle_steps=2,
-                         reward=humanoid_reward_config(), base_controller="zero", action_scale=0.25)
+                         base_controller="zero", action_scale=0.25)
     run = TrainingRun(tmp_path / "g1", "ppo", cfg, total_steps=2 * 24, checkpoint_every=1)
     obs = run.env.get_observations()
     assert obs["policy"].shape == (2, 6 + 3 * 29) and obs["history"].shape == (2, 5 * (6 + 3 * 29))
@@ -233,7 +229,7 @@ def test_a_humanoid_residual_policy_trains_and_adds_its_action_to_the_base_contr
     logged = run.env.reward_cfg.weights
     assert {"head_height", "feet_on_ground", "upper_body_posture", "action_jerk"} <= set(logged)
     assert "feet_contact" not in logged
-    assert 1.1 < run.env.nominal_head_height < 1.35  # the G1's head centre stands about 1.23 m high
+    assert 1.1 < run.env.robots.nominal_head_height < 1.35  # the G1's head centre stands about 1.23 m high
 
     spec = get_robot("g1")
     policy = load_policy(str(tmp_path / "g1"))
@@ -272,7 +268,7 @@ def test_a_residual_policy_keeps_the_base_controller_parameters_it_was_trained_w
                          base_controller="keyframe-humanoid", base_controller_parameters=trained_with,
                          action_scale=0.1)
     run = TrainingRun(tmp_path / "g1", "ppo", cfg, total_steps=2 * 24, checkpoint_every=1)
-    assert run.env.controller.parameter_dict()["stand.knee"] == 0.9
+    assert run.env.targets_of.controller.parameter_dict()["stand.knee"] == 0.9
     run.train(progress_bar=False)
     policy = load_policy(str(tmp_path / "g1"))
     assert isinstance(policy.base_controller, KeyframeHumanoidPolicy)
@@ -343,19 +339,19 @@ def test_a_resumed_run_can_widen_a_morphology_range_and_redraws_its_robots(tmp_p
     cfg = TrainEnvConfig(num_envs=4, episode_steps=5, settle_steps=2, num_morphologies=2, families=("flat",))
     first = TrainingRun(tmp_path / "run", "ppo", cfg, total_steps=4 * 24, checkpoint_every=1)
     first.train(progress_bar=False)
-    assert all(0.013 <= m.calf_height <= 0.019 for m in first.env.morphologies)
+    assert all(0.013 <= m.calf_height <= 0.019 for m in first.env.robots.morphologies)
     ranges = morphology_range_changes(["calf_height=0.040,0.045", "calf_width=0.030,0.040"])
     assert ranges == {"calf_height": (0.040, 0.045), "calf_width": (0.030, 0.040)}
     staged = TrainingRun(tmp_path / "run", total_steps=4 * 24 * 2, resume=True, checkpoint_every=1,
                          command="frbench train --resume run --morphology-range ...", morphology_stage=ranges)
-    assert [0.040 <= m.calf_height <= 0.045 and 0.030 <= m.calf_width <= 0.040 for m in staged.env.morphologies] \
+    assert [0.040 <= m.calf_height <= 0.045 and 0.030 <= m.calf_width <= 0.040 for m in staged.env.robots.morphologies] \
         == [True, True]
     assert staged.env_steps == 96
     config = json.loads((tmp_path / "run" / "config.json").read_text())
     assert config["stages"][-1]["morphology_ranges"] == {"calf_height": [0.040, 0.045], "calf_width": [0.030, 0.040]}
     assert config["env"]["morphology_ranges"]["calf_height"] == [0.040, 0.045]
     again = TrainingRun(tmp_path / "run", resume=True)  # a plain resume keeps the widened table
-    assert all(0.040 <= m.calf_height <= 0.045 for m in again.env.morphologies)
+    assert all(0.040 <= m.calf_height <= 0.045 for m in again.env.robots.morphologies)
     with pytest.raises(FrbenchError, match="'calf_girth': not a randomised field"):
         morphology_range_changes(["calf_girth=0.01,0.02"])
     with pytest.raises(FrbenchError, match="expected FIELD=LOW,HIGH"):
@@ -378,7 +374,7 @@ def test_the_assist_force_lifts_with_a_fraction_of_the_weight_and_fades_out():
     for _ in range(3):
         env.step(torch.zeros(2, env.num_actions))
     np.testing.assert_allclose(env.backend._base_force, 0.0)
-    assert env.assist_fraction == 0.0
+    assert env.assist.fraction == 0.0
 
 
 @pytest.mark.parametrize("backend", ["mujoco", "pybullet"])
@@ -410,10 +406,9 @@ def test_a_base_force_of_one_and_a_half_weights_lifts_the_robot_at_half_g(backen
 def test_a_named_robot_keeps_its_per_joint_gains_scaled_by_one_factor_per_episode():
     from frbench.backends.base import PhysicsParams
     from frbench.robots import get_robot
-    from frbench.training.env import NAMED_ROBOT_GAIN_FACTORS, humanoid_reward_config
+    from frbench.training.population import NAMED_ROBOT_GAIN_FACTORS
 
-    cfg = TrainEnvConfig(num_envs=4, episode_steps=3, settle_steps=2, robot="g1", families=("flat",),
-                         reward=humanoid_reward_config())
+    cfg = TrainEnvConfig(num_envs=4, episode_steps=3, settle_steps=2, robot="g1", families=("flat",))
     env = RecoveryTrainingEnv(cfg)
     nominal = PhysicsParams.nominal(get_robot("g1"), 4)
     assert np.ptp(nominal.kp) > 100.0  # the G1's gains differ by joint (N·m/rad)
@@ -428,24 +423,28 @@ def test_train_command_records_the_settle_and_the_base_controller_parameters(tmp
     from frbench.policies.registry import base_controller_parameters
 
     out = tmp_path / "g1"
-    assert main(["train", "--method", "ppo", "--robots", "g1", "--terrains", "flat", "--envs", "2", "--steps", "48",
-                 "--episode-steps", "3", "--settle-steps", "4", "--base-controller", "keyframe-humanoid",
-                 "--action-scale", "0.1", "--init-std", "0.2", "--no-randomize", "--out", str(out)]) == 0
+    assert main(["train", "--method", "ppo", "--preset", "g1-residual", "--envs", "2", "--steps", "48",
+                 "--set", "episode_steps=3", "--set", "settle_steps=4", "--set", "action_hold=1",
+                 "--out", str(out)]) == 0
     config = json.loads((out / "config.json").read_text())
     env = config["env"]
-    assert config["train_cfg"]["actor"]["distribution_cfg"]["init_std"] == 0.2
+    assert config["train_cfg"]["actor"]["distribution_cfg"]["init_std"] == 0.25  # the preset's
     policy = torch.load(out / "policy.pt", weights_only=True)
-    assert json.loads(policy["config_json"])["train_cfg"]["actor"]["distribution_cfg"]["init_std"] == 0.2
-    assert env["settle_steps"] == 4 and env["episode_steps"] == 3
+    assert json.loads(policy["config_json"])["train_cfg"]["actor"]["distribution_cfg"]["init_std"] == 0.25
+    assert env["settle_steps"] == 4 and env["episode_steps"] == 3 and env["action_hold"] == 1
+    assert env["robot"] == "g1" and env["residual_gate"] and env["action_scale"] == 0.1 and not env["randomize"]
     assert env["base_controller_parameters"] == base_controller_parameters("keyframe-humanoid")
-    assert main(["train", "--robots", "g1", "--settle-steps", "-1", "--out", str(tmp_path / "bad")]) == 2
-    assert main(["train", "--robots", "g1", "--init-std", "0", "--out", str(tmp_path / "bad")]) == 2
-    assert main(["train", "--robots", "g1", "--base-controller", "keyframe-humanoid", "--rise-starts", "0.5",
-                 "--out", str(tmp_path / "bad")]) == 2  # rise starts need the gate
-    assert main(["train", "--robots", "g1", "--base-controller", "keyframe-humanoid", "--gate-phases", "rise",
-                 "--out", str(tmp_path / "bad")]) == 2  # gate phases need the gate
-    assert main(["train", "--robots", "g1", "--base-controller", "keyframe-humanoid", "--gate-residual",
-                 "--gate-phases", "rise,stand", "--out", str(tmp_path / "bad")]) == 2  # no phase 'stand'
+    assert env["reward"]["weights"]["velocity_limit"] == -0.01 and "head_height" in env["reward"]["weights"]
+    bad = ["--out", str(tmp_path / "bad")]
+    assert main(["train", "--robots", "g1", "--set", "settle_steps=-1", *bad]) == 2
+    assert main(["train", "--robots", "g1", "--set", "base_controller=keyframe-humanoid",
+                 "--set", "rise_start_fraction=0.5", *bad]) == 2  # rise starts need the gate
+    assert main(["train", "--robots", "g1", "--set", "base_controller=keyframe-humanoid",
+                 "--set", "gate_phases=rise", *bad]) == 2  # gate phases need the gate
+    assert main(["train", "--preset", "g1-residual", "--set", "gate_phases=rise,stand", *bad]) == 2  # no 'stand'
+    assert main(["train", "--preset", "g2-residual", *bad]) == 2
+    assert main(["train", "--set", "action_hold=ten", *bad]) == 2
+    assert main(["train", "--set", "no_such_field=1", *bad]) == 2
     assert not (tmp_path / "bad").exists()
 
 
@@ -518,15 +517,15 @@ def test_rise_starts_begin_where_the_gate_opened_with_the_controller_in_its_rise
                          base_controller="keyframe-humanoid", residual_gate=True, rise_start_fraction=1.0,
                          action_scale=0.1)
     env = RecoveryTrainingEnv(cfg)
-    assert len(env.rise_bank) == 3  # each environment once, at the step its gate first opened
-    assert env.from_demo.all() and (env.controller.phase == CROUCH).all()
-    recorded_q = np.concatenate([row[0].q for row in env.rise_bank])
-    assert {tuple(np.round(q, 9)) for q in env.state.q} <= {tuple(np.round(q, 9)) for q in recorded_q}
-    starts = {tuple(np.round(env.controller._clip(row[2]), 9)) for row in env.rise_bank}
-    assert {tuple(np.round(s, 9)) for s in env.controller.start} <= starts  # the ramp starts at recorded targets
+    assert len(env.rise.bank) == 3  # each environment once, at the step its gate first opened
+    assert env.from_demo.all() and (env.targets_of.controller.phase == CROUCH).all()
+    recorded_q = np.concatenate([row[0].q for row in env.rise.bank])
+    assert {tuple(np.round(q, 9)) for q in env.task.state.q} <= {tuple(np.round(q, 9)) for q in recorded_q}
+    starts = {tuple(np.round(env.targets_of.controller._clip(row[2]), 9)) for row in env.rise.bank}
+    assert {tuple(np.round(s, 9)) for s in env.targets_of.controller.start} <= starts  # the ramp starts at recorded targets
     for _ in range(3):
         env.step(torch.zeros(3, 29))
     assert env.last_episode_stats["demo_start_share"] == 1.0 and "success_demo_starts" in env.last_episode_stats
-    with pytest.raises(ValueError, match="rise_start_fraction needs residual_gate"):
-        RecoveryTrainingEnv(TrainEnvConfig(num_envs=2, robot="g1", randomize=False, families=("flat",),
-                                           base_controller="keyframe-humanoid", rise_start_fraction=0.5))
+    with pytest.raises(ValueError, match="rise_start_fraction 0.5: expected residual_gate"):
+        TrainEnvConfig(num_envs=2, robot="g1", randomize=False, families=("flat",),
+                       base_controller="keyframe-humanoid", rise_start_fraction=0.5)

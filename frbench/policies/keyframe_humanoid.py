@@ -11,7 +11,7 @@ for backs and sides → ``PUSH_A`` → ``PUSH_B`` → ``LIFT`` → ``PIKE`` → 
   of those phases come from a parameter vector (`PARAMETERS`: named left-side joint angles, mirrored
   for the right side, and ramp lengths in control steps), one vector per
   environment, so a batch of candidates can run side by side
-  (`frbench.policies.keyframe_search`);
+  (`tools/keyframe_search.py`);
 * from the back it can sit up instead of rolling (``situp.tries`` > 0; 0 in parameter files written before it
   existed): ``TUCK`` → ``PROP`` → ``ROCK`` (`frbench.policies.scripted_humanoid.SITUP_PHASES`, key poses
   ``tuck.*``, ``prop.*``, ``rock.*``) into the crouch, which then uses the sit-up path's own crouch and stand poses,
@@ -54,7 +54,7 @@ stalled there before session 7's roll search). The task's humanoid test reads th
 height only: an earlier search with a height-only objective found a hand /
 head stand (pelvis upside down above 0.7 m, then at 0.53 m) that passed it on
 3 of 4 prone starts; the search objective therefore counts only upright
-pelvis heights (`frbench.policies.keyframe_search.episode_scores`).
+pelvis heights (`tools/keyframe_search.py`, ``episode_scores``).
 """
 
 from __future__ import annotations

@@ -19,7 +19,7 @@ besides/instead of the stage's own; ``--backends mujoco,pybullet`` runs those st
 simulators and scores the mean. The last runs behind the shipped parameters are in the
 parameter file (``search``, ``situp_search``); the rise stage's:
 
-    .venv/bin/python -m frbench.policies.keyframe_search --stage rise \
+    .venv/bin/python tools/keyframe_search.py --stage rise \
         --states mujoco:mj24.npz --states pybullet:pb24.npz --steps 150 --deadline 48 \
         --init riseE.json --popsize 10 --sigma 0.35 --max-minutes 25 --seed 36 \
         --out keyframe_humanoid_params.json
@@ -383,7 +383,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     import cma
 
-    command = "python -m frbench.policies.keyframe_search " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
+    command = "python tools/keyframe_search.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
     out = Path(args.out)
     starts = parse_starts(args.starts)
     if args.roll_seeds:

@@ -1,0 +1,64 @@
+"""Named training setups for ``frbench train --preset NAME``: the experiments of docs/results.md by name.
+
+A preset fixes env-config fields (`TrainEnvConfig`), reward changes and the actor's initial exploration;
+the command line's own flags and ``--set FIELD=VALUE`` apply on top of it. Budgets are not part of a preset
+(``--steps``); a schedule left at 0 (``demo_start_until``, ``assist_until``) becomes half the budget.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Mapping
+
+from frbench.training.rewards import STABILITY_TERMS
+
+#: Scale of the motion penalties in the G1 residual runs, relative to the paper's weights.
+G1_MOTION_PENALTY_SCALE = 0.01
+
+
+@dataclass(frozen=True)
+class Preset:
+    """One named setup.
+
+    Attributes:
+        description: one line for ``frbench train --help``.
+        env: `TrainEnvConfig` field → value.
+        motion_penalties: the joint velocity/acceleration/torque penalties at this scale of the paper's weights
+            (None: the robot's table as it is).
+        reward_weights: reward term → weight.
+        drop_terms: reward terms left out (ablations).
+        init_std: the Gaussian actions' initial std (None: the method's).
+    """
+
+    description: str
+    env: Mapping[str, object] = field(default_factory=lambda: MappingProxyType({}))
+    motion_penalties: float | None = None
+    reward_weights: Mapping[str, float] = field(default_factory=lambda: MappingProxyType({}))
+    drop_terms: tuple[str, ...] = ()
+    init_std: float | None = None
+
+
+PRESETS: Mapping[str, Preset] = MappingProxyType({
+    "paper": Preset("random morphologies on all terrains, the paper's setup (the defaults)"),
+    "demo-starts": Preset(
+        "paper setup, half the episodes starting along the scripted getting-up motion, annealed to 0 "
+        "(the shipped frnet and the 3.07 M budget runs)",
+        env=MappingProxyType({"demo_start_fraction": 0.5})),
+    "no-stability": Preset(
+        "demo-starts without the stability reward terms (the frnet-no-stability ablation)",
+        env=MappingProxyType({"demo_start_fraction": 0.5}), drop_terms=STABILITY_TERMS),
+    "g1-residual": Preset(
+        "G1 on flat ground: a gated residual over the keyframe-humanoid key frames, actions held 10 steps",
+        env=MappingProxyType({
+            "robot": "g1", "families": ("flat",), "base_controller": "keyframe-humanoid", "residual_gate": True,
+            "gate_phases": ("tuck", "prop", "rock", "crouch", "rise", "hold"), "action_hold": 10,
+            "action_scale": 0.1, "randomize": False, "episode_steps": 250, "settle_steps": 50}),
+        motion_penalties=G1_MOTION_PENALTY_SCALE, reward_weights=MappingProxyType({"velocity_limit": -0.01}),
+        init_std=0.25),
+    "g1-assist": Preset(
+        "G1 on flat ground: a residual over scripted-humanoid with HoST's assist force and demo starts",
+        env=MappingProxyType({
+            "robot": "g1", "families": ("flat",), "base_controller": "scripted-humanoid", "action_scale": 0.5,
+            "assist_force": 0.6, "demo_start_fraction": 0.3})),
+})
