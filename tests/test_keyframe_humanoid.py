@@ -17,6 +17,9 @@ from frbench.policies.keyframe_humanoid import (
     decode,
     load_parameters,
 )
+from frbench.policies.registry import load_policy
+from frbench.robots import get_robot
+from tests.test_scripted import _obs
 from tools.keyframe_search import (
     episode_scores,
     non_prone_starts,
@@ -24,9 +27,6 @@ from tools.keyframe_search import (
     starts_of_kind,
     upright_success,
 )
-from frbench.policies.registry import load_policy
-from frbench.robots import get_robot
-from tests.test_scripted import _obs
 
 
 def test_parameter_file_loads_and_is_within_bounds():
