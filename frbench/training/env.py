@@ -41,13 +41,14 @@ from tensordict import TensorDict
 
 from frbench.backends import make_backend, simulator_parts
 from frbench.tasks.initial_states import FallenStarts, draw_start
-from frbench.tasks.observations import flatten, rotate_to_body
+from frbench.tasks.observations import flatten
 from frbench.tasks.recovery import RecoveryTask
 from frbench.training.action_hold import HeldAction
 from frbench.training.assist import AssistForce
 from frbench.training.config import TrainEnvConfig
 from frbench.training.curriculum import TerrainCurriculum
 from frbench.training.height_raster import HeightRaster
+from frbench.training.observation_groups import observation_groups
 from frbench.training.population import TrainingRobots, yaw_of
 from frbench.training.residual import DirectTargets, ResidualController
 from frbench.training.rewards import RewardInputs, compute_rewards, with_joint_velocity_limits
@@ -194,32 +195,10 @@ class RecoveryTrainingEnv(VecEnv):
         return o_t
 
     def _observations(self, o_t: np.ndarray) -> TensorDict:
-        s, c, p = self.task.state, self.task.contacts, self.task.params
+        s = self.task.state
         scan = self.raster.scan(self.tile_row, s.base_pos, yaw_of(s.base_quat))
-        com_xy = self.robots.com_xy(s)
-        masses = self.robots.env_masses
-        privileged = np.concatenate([
-            o_t, np.clip(scan, -1.0, 1.0), masses, p.kp, p.kd, com_xy,
-            c.group_contact.astype(float), np.minimum(c.foot_force, 500.0) / 100.0, p.friction[:, None],
-        ], axis=1)
-        velocity = rotate_to_body(s.base_quat, s.base_linvel)
-        extrinsics = np.concatenate([
-            masses, p.kp.mean(axis=1, keepdims=True) / 50, p.kd.mean(axis=1, keepdims=True),
-            p.motor_strength.mean(axis=1, keepdims=True), p.friction[:, None], p.payload[:, None], com_xy,
-        ], axis=1)
-        groups = {
-            "policy": o_t, "history": self.history.reshape(self.num_envs, -1), "privileged": privileged,
-            "mass": masses, "contact": c.group_contact.astype(float), "velocity": velocity,
-            "extrinsics": extrinsics,
-        }
-        if self.long_history is not None:
-            groups["long_history"] = self.long_history.reshape(self.num_envs, -1)
-        alive = ~self.backend.diverged
-        tensors = {}
-        for key, value in groups.items():
-            value = np.where(alive[:, None], np.nan_to_num(value, nan=0.0, posinf=0.0, neginf=0.0), 0.0)
-            tensors[key] = torch.as_tensor(value, dtype=torch.float32)
-        return TensorDict(tensors, batch_size=[self.num_envs])
+        return observation_groups(o_t, self.history, self.long_history, s, self.task.contacts, self.task.params,
+                                  self.robots.env_masses, self.robots.com_xy(s), scan, self.backend.diverged)
 
     def get_observations(self) -> TensorDict:
         """The current observation groups."""
