@@ -336,7 +336,7 @@ def test_results_carry_the_parameter_files_checksum():
 
 
 def test_crouch_states_are_recorded_where_the_gate_opens(tmp_path):
-    from frbench.policies.keyframe_states import MIN_CROUCH_HEIGHT, main, parse_seeds
+    from tools.keyframe_states import MIN_CROUCH_HEIGHT, main, parse_seeds
 
     assert parse_seeds("4-6,9") == [4, 5, 6, 9]
     out = tmp_path / "crouch.npz"

@@ -8,7 +8,7 @@ found so far to ``--out`` (JSON, the same format as the shipped
 ``keyframe_humanoid_params.json``) after every generation. ``--stage rise``
 tunes only the ``CROUCH``/``RISE``/feedback parameters from recorded states
 (``--states``: an ``.npz`` of `RobotState` fields and the controller's targets,
-as `frbench.policies.keyframe_states` writes them; ``BACKEND:FILE`` runs them in
+as `tools/keyframe_states.py` writes them; ``BACKEND:FILE`` runs them in
 that simulator, and several ``--states`` score the mean over simulators;
 ``--deadline`` bounds when the robot must be up). ``--stage prone`` tunes only the
 way from the belly into the crouch (`PRONE_PARAMETERS`) on whole episodes from
@@ -19,7 +19,7 @@ besides/instead of the stage's own; ``--backends mujoco,pybullet`` runs those st
 simulators and scores the mean. The last runs behind the shipped parameters are in the
 parameter file (``search``, ``situp_search``); the rise stage's:
 
-    .venv/bin/python tools/keyframe_search.py --stage rise \
+    .venv/bin/python -m tools.keyframe_search --stage rise \
         --states mujoco:mj24.npz --states pybullet:pb24.npz --steps 150 --deadline 48 \
         --init riseE.json --popsize 10 --sigma 0.35 --max-minutes 25 --seed 36 \
         --out keyframe_humanoid_params.json
@@ -43,7 +43,7 @@ from frbench.policies.keyframe_humanoid import (
     KeyframeHumanoidPolicy,
     decode,
 )
-from frbench.policies.keyframe_states import STATE_FIELDS, parse_seeds
+from tools.keyframe_states import STATE_FIELDS, parse_seeds
 from frbench.tasks.initial_states import FALL_KINDS, FallenStarts, draw_starts
 from frbench.tasks.recovery import EPISODE_STEPS, RecoveryTask
 
@@ -383,7 +383,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     import cma
 
-    command = "python tools/keyframe_search.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
+    command = "python -m tools.keyframe_search " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
     out = Path(args.out)
     starts = parse_starts(args.starts)
     if args.roll_seeds:

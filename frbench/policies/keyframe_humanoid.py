@@ -11,7 +11,7 @@ for backs and sides → ``PUSH_A`` → ``PUSH_B`` → ``LIFT`` → ``PIKE`` → 
   of those phases come from a parameter vector (`PARAMETERS`: named left-side joint angles, mirrored
   for the right side, and ramp lengths in control steps), one vector per
   environment, so a batch of candidates can run side by side
-  (`tools/keyframe_search.py`);
+  (`python -m tools.keyframe_search`);
 * from the back it can sit up instead of rolling (``situp.tries`` > 0; 0 in parameter files written before it
   existed): ``TUCK`` → ``PROP`` → ``ROCK`` (`frbench.policies.scripted_humanoid.SITUP_PHASES`, key poses
   ``tuck.*``, ``prop.*``, ``rock.*``) into the crouch, which then uses the sit-up path's own crouch and stand poses,

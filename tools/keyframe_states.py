@@ -7,7 +7,7 @@ targets then and the seed and step, to an ``.npz``. States with the pelvis below
 crouch entered while still lying: the squat ended on the ground) are left out. Example (the rise search's
 training states; seeds 0-3 are the evaluation grid's and 16-23 the held-out check's)::
 
-    python -m frbench.policies.keyframe_states --backend mujoco --seeds 4-15,24-63 --out crouch_train.npz
+    python -m tools.keyframe_states --backend mujoco --seeds 4-15,24-63 --out crouch_train.npz
 """
 
 from __future__ import annotations
