@@ -9,7 +9,8 @@ trains on the humanoid table without anyone asking for it.
 
 ``to_dict``/``from_dict`` are its JSON form in a run's ``config.json`` and in
 every policy checkpoint; ``from_dict`` reads the files of older runs too
-(fields added since take their defaults; `RENAMED_FIELDS` maps renamed ones).
+(every field kept its name; fields added since take their defaults, and the
+reward table is the one the run recorded).
 """
 
 from __future__ import annotations
@@ -30,8 +31,6 @@ GAIN_RANGE_REASON = (
     "sinks 40-65 % below its standing height and touches the ground with its body, with Kp 80 every one stands, "
     "so Kp < 50 makes most episodes impossible to win"
 )
-#: Old config.json field name → its current name (none renamed so far: every field kept its name).
-RENAMED_FIELDS: Mapping[str, str] = MappingProxyType({})
 #: The largest assist force, as a fraction of the robot's weight.
 MAX_ASSIST_FRACTION = 2.0
 
@@ -190,8 +189,8 @@ class TrainEnvConfig:
 
     @classmethod
     def from_dict(cls, data: Mapping) -> "TrainEnvConfig":
-        """A config from its JSON form (`to_dict`), including those of older runs (`RENAMED_FIELDS`)."""
-        data = {RENAMED_FIELDS.get(k, k): v for k, v in dict(data).items()}
+        """A config from its JSON form (`to_dict`), including those of older runs (see the module docstring)."""
+        data = dict(data)
         known = {f.name for f in dataclasses.fields(cls)}
         unknown = sorted(set(data) - known)
         if unknown:
