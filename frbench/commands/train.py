@@ -143,7 +143,7 @@ def new_run_config(args, command: str, weights: dict[str, float], ranges: dict):
         raise FrbenchError(f"frbench train --preset {args.preset}: {exc}") from None
     reward = reward_table(cfg.robot_kind())
     if preset.drop_terms:
-        reward = reward.without(preset.drop_terms, f"ablation (--preset {args.preset})")
+        reward = reward.without(preset.drop_terms, f"stability-reward ablation (--preset {args.preset})")
     if preset.motion_penalties is not None and args.motion_penalties is None:
         preset_weights = reward_weight_changes(preset.motion_penalties, [f"{k}={v}" for k, v in preset.reward_weights.items()])
         weights = {**preset_weights, **weights}
