@@ -435,6 +435,7 @@ def test_train_command_records_the_settle_and_the_base_controller_parameters(tmp
     assert env["robot"] == "g1" and env["residual_gate"] and env["action_scale"] == 0.1 and not env["randomize"]
     assert env["base_controller_parameters"] == base_controller_parameters("keyframe-humanoid")
     assert env["reward"]["weights"]["velocity_limit"] == -0.01 and "head_height" in env["reward"]["weights"]
+    assert env["reward"]["weights"]["joint_velocity"] == pytest.approx(0.01 * PAPER_WEIGHTS["joint_velocity"])
     bad = ["--out", str(tmp_path / "bad")]
     assert main(["train", "--robots", "g1", "--set", "settle_steps=-1", *bad]) == 2
     assert main(["train", "--robots", "g1", "--set", "base_controller=keyframe-humanoid",
