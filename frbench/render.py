@@ -83,17 +83,63 @@ class VisualMesh:
     rgba: tuple
 
 
+#: Bump when `visual_meshes` changes what it extracts (invalidates the cached meshes).
+VISUAL_MESH_VERSION = 1
+
+
 @lru_cache(maxsize=8)
 def visual_meshes(urdf_path: str) -> tuple[VisualMesh, ...]:
     """The URDF's visual meshes, each attached to the child link of its moving joint (empty: none, or none that
-    loads). Pinocchio resolves ``package://`` against example-robot-data's share folder and the URDF's folders."""
+    loads). Pinocchio resolves ``package://`` against example-robot-data's share folder and the URDF's folders;
+    the extracted meshes are cached under frbench's cache folder by the URDF's checksum (Go1's 0.7 M triangles
+    take seconds to extract)."""
+    from frbench.io import sha256_text
+    from frbench.robots.paths import cache_dir
+
+    urdf = Path(urdf_path)
+    key = sha256_text(f"{VISUAL_MESH_VERSION}\n{urdf.resolve()}\n{urdf.read_text(errors='replace')}")[:20]
+    cached = cache_dir() / "visual-meshes" / f"{urdf.stem}-{key}.npz"
+    if cached.is_file():
+        try:
+            return _meshes_from_arrays(dict(np.load(cached, allow_pickle=False)))
+        except (OSError, ValueError, KeyError):
+            pass  # unreadable cache: extract again
+    meshes = _extract_visual_meshes(urdf)
+    try:
+        import io
+
+        from frbench.io import atomic_write_bytes
+
+        buffer = io.BytesIO()
+        np.savez_compressed(buffer, **_meshes_to_arrays(meshes))
+        atomic_write_bytes(cached, buffer.getvalue())
+    except FrbenchError:
+        pass  # a read-only cache folder only costs time
+    return meshes
+
+
+def _meshes_to_arrays(meshes: tuple[VisualMesh, ...]) -> dict[str, np.ndarray]:
+    arrays = {"count": np.array(len(meshes))}
+    for k, mesh in enumerate(meshes):
+        arrays.update({f"{k}_body": np.array(mesh.body), f"{k}_vertices": mesh.vertices, f"{k}_faces": mesh.faces,
+                       f"{k}_pos": mesh.pos, f"{k}_quat": mesh.quat, f"{k}_rgba": np.array(mesh.rgba)})
+    return arrays
+
+
+def _meshes_from_arrays(arrays: dict[str, np.ndarray]) -> tuple[VisualMesh, ...]:
+    return tuple(VisualMesh(str(arrays[f"{k}_body"]), arrays[f"{k}_vertices"], arrays[f"{k}_faces"],
+                            arrays[f"{k}_pos"], arrays[f"{k}_quat"], tuple(float(c) for c in arrays[f"{k}_rgba"]))
+                 for k in range(int(arrays["count"])))
+
+
+def _extract_visual_meshes(urdf: Path) -> tuple[VisualMesh, ...]:
+    """`visual_meshes` without the cache: Pinocchio's URDF geometry parser (meshes loaded by coal/assimp)."""
     import warnings
 
     import pinocchio as pin
 
     from frbench.robots.paths import cmeel_share
 
-    urdf = Path(urdf_path)
     try:
         model = pin.buildModelFromUrdf(str(urdf), pin.JointModelFreeFlyer())
         with warnings.catch_warnings():
@@ -225,12 +271,13 @@ class SceneRenderer:
         size = max(spec.nominal_height, 0.3)
         self.camera.distance = 0.8 + 2.2 * size
         self.camera.azimuth, self.camera.elevation = 105.0, -16.0
-        self._lookat = None
+        self._lookat: dict = {}
         self.follow = 0.15  # fraction of the way the camera's target moves towards the base each frame
 
-    def frame(self, base_pos, base_quat, q, caption: str | None = None) -> np.ndarray:
+    def frame(self, base_pos, base_quat, q, caption: str | None = None, track=0) -> np.ndarray:
         """An RGB image (H, W, 3) uint8 of one configuration, the camera following the base; ``caption`` is
-        written in the top-left corner."""
+        written in the top-left corner. ``track`` names the followed robot (one smoothed camera target per
+        name, e.g. one per environment of a batch)."""
         mujoco = self._mujoco
         self.data.qpos[:3] = base_pos
         self.data.qpos[3:7] = base_quat
@@ -238,11 +285,17 @@ class SceneRenderer:
         mujoco.mj_kinematics(self.model, self.data)
         mujoco.mj_camlight(self.model, self.data)  # light directions
         target = np.asarray(base_pos, dtype=float)
-        self._lookat = target.copy() if self._lookat is None else self._lookat + self.follow * (target - self._lookat)
-        self.camera.lookat[:] = self._lookat
+        previous = self._lookat.get(track)
+        lookat = target.copy() if previous is None else previous + self.follow * (target - previous)
+        self._lookat[track] = lookat
+        self.camera.lookat[:] = lookat
         self.renderer.update_scene(self.data, camera=self.camera, scene_option=self.options)
         image = self.renderer.render()
         return draw_caption(image, caption) if caption else image.copy()
+
+    def forget(self, track=0) -> None:
+        """The next frame of ``track`` puts the camera straight on the base (a new episode)."""
+        self._lookat.pop(track, None)
 
     def close(self) -> None:
         """Free the GL context."""
@@ -306,7 +359,7 @@ def write_video(frames: list[np.ndarray], path: Path, fps: int) -> Path:
 
 
 def write_png(image: np.ndarray, path: Path) -> Path:
-    """Write an RGB image (H, W, 3) uint8 to ``path`` atomically."""
+    """Write an RGB image (H, W, 3) uint8 to ``path`` atomically, as a 256-colour PNG (a third of the bytes)."""
     import io
 
     from PIL import Image
@@ -314,7 +367,8 @@ def write_png(image: np.ndarray, path: Path) -> Path:
     from frbench.io import atomic_write_bytes
 
     buffer = io.BytesIO()
-    Image.fromarray(image).save(buffer, format="PNG", optimize=True)
+    picture = Image.fromarray(image).quantize(colors=256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
+    picture.save(buffer, format="PNG", optimize=True)
     return atomic_write_bytes(path, buffer.getvalue())
 
 
