@@ -7,8 +7,8 @@ same terrain and drawn kinematically (``mj_forward``, no physics step).
 What the render model adds to the simulation model (`render_model`); the
 physics models of both simulators are untouched:
 
-* the robot's visual meshes when its URDF has them (loaded with Pinocchio's
-  URDF geometry parser, so ``.dae``, ``.stl`` and ``.obj`` all work), in a
+* the robot's visual meshes when its URDF has them (placed by Pinocchio's
+  URDF geometry parser, read by assimp: ``.dae``, ``.stl`` and ``.obj``), in a
   group that collides with nothing; the collision primitives are then hidden.
   A URDF without visuals is drawn with its collision shapes;
 * a checkered ground and terrain boxes, each box shaded by height and
@@ -84,14 +84,14 @@ class VisualMesh:
 
 
 #: Bump when `visual_meshes` changes what it extracts (invalidates the cached meshes).
-VISUAL_MESH_VERSION = 1
+VISUAL_MESH_VERSION = 2
 
 
 @lru_cache(maxsize=8)
 def visual_meshes(urdf_path: str) -> tuple[VisualMesh, ...]:
     """The URDF's visual meshes, each attached to the child link of its moving joint (empty: none, or none that
-    loads). Pinocchio resolves ``package://`` against example-robot-data's share folder and the URDF's folders;
-    the extracted meshes are cached under frbench's cache folder by the URDF's checksum (Go1's 0.7 M triangles
+    loads). Pinocchio resolves ``package://`` against example-robot-data's share folder and the URDF's folders,
+    assimp reads the mesh files; the extracted meshes are cached under frbench's cache folder by the URDF's checksum (Go1's 0.7 M triangles
     take seconds to extract)."""
     from frbench.io import sha256_text
     from frbench.robots.paths import cache_dir
@@ -133,7 +133,8 @@ def _meshes_from_arrays(arrays: dict[str, np.ndarray]) -> tuple[VisualMesh, ...]
 
 
 def _extract_visual_meshes(urdf: Path) -> tuple[VisualMesh, ...]:
-    """`visual_meshes` without the cache: Pinocchio's URDF geometry parser (meshes loaded by coal/assimp)."""
+    """`visual_meshes` without the cache: the visual elements and their placements from Pinocchio's URDF
+    geometry parser, each mesh's triangles from assimp (`_mesh_triangles`)."""
     import warnings
 
     import pinocchio as pin
@@ -155,16 +156,67 @@ def _extract_visual_meshes(urdf: Path) -> tuple[VisualMesh, ...]:
     meshes = []
     for item in geometry.geometryObjects:
         shape = item.geometry
-        if not hasattr(shape, "num_tris") or shape.num_tris == 0:
+        if not item.meshPath or not hasattr(shape, "num_tris") or shape.num_tris == 0:
             continue
-        vertices = np.asarray(shape.vertices(), dtype=float) * np.asarray(item.meshScale)
-        faces = np.array([[t[0], t[1], t[2]] for t in (shape.tri_indices(i) for i in range(shape.num_tris))],
-                         dtype=np.int32)
-        rgba = tuple(float(c) for c in item.meshColor)
+        triangles = _mesh_triangles(Path(item.meshPath), np.asarray(shape.vertices(), dtype=float))
+        if triangles is None:
+            return ()  # one mesh that cannot be read faithfully: draw the collision shapes rather than half a robot
+        vertices, faces = triangles
         quat = pin.Quaternion(item.placement.rotation)
-        meshes.append(VisualMesh(link_of_joint[item.parentJoint], vertices, faces, item.placement.translation.copy(),
-                                 np.array([quat.w, quat.x, quat.y, quat.z]), rgba))
+        meshes.append(VisualMesh(link_of_joint[item.parentJoint], vertices * np.asarray(item.meshScale), faces,
+                                 item.placement.translation.copy(), np.array([quat.w, quat.x, quat.y, quat.z]),
+                                 tuple(float(c) for c in item.meshColor)))
     return tuple(meshes)
+
+
+def _assimp() -> Path | None:
+    """assimp's command-line tool, installed with Pinocchio (cmeel-assimp), or None."""
+    from frbench.robots.paths import cmeel_share
+
+    try:
+        tool = cmeel_share().parent / "bin" / "assimp"
+    except FrbenchError:
+        return None
+    return tool if tool.is_file() else None
+
+
+def _mesh_triangles(path: Path, reference: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """Vertices (V, 3) [file units] and faces (F, 3) of a mesh file (.dae, .stl, .obj, ...), every sub-mesh with
+    its node transform, converted by assimp to binary STL; None if that fails or disagrees with ``reference``.
+
+    Why assimp's tool and not coal's loader (which Pinocchio used): coal's triangles of a file with several
+    sub-meshes index the first sub-mesh's vertices only (Go2's thigh.dae: faces reach 2,089 of 3,037 vertices),
+    and MuJoCo's OBJ reader keeps the first object only. assimp turns a Z-up COLLADA file into Y-up; that is
+    undone, and the result's bounding box must match that of ``reference`` (coal's vertices, placed right) within
+    10 % of its size + 2 mm (a wrong axis convention is off by centimetres).
+    """
+    import subprocess
+    import tempfile
+
+    tool = _assimp()
+    if tool is None or not path.is_file():
+        return None
+    with tempfile.TemporaryDirectory(prefix="frbench-mesh-") as folder:
+        target = Path(folder) / "mesh.stl"
+        environment = {**os.environ, "LD_LIBRARY_PATH": os.pathsep.join(
+            filter(None, [str(tool.parent.parent / "lib"), os.environ.get("LD_LIBRARY_PATH")]))}
+        done = subprocess.run([str(tool), "export", str(path), str(target), "-fstlb", "-ptv"], env=environment,
+                              capture_output=True, timeout=120)
+        if done.returncode != 0 or not target.is_file():
+            return None
+        data = target.read_bytes()
+    count = int(np.frombuffer(data[80:84], dtype="<u4")[0])
+    record = np.dtype([("normal", "<f4", 3), ("vertices", "<f4", (3, 3)), ("attribute", "<u2")])
+    corners = np.frombuffer(data[84:84 + record.itemsize * count], dtype=record)["vertices"].reshape(-1, 3)
+    corners = corners.astype(float)
+    if path.suffix.lower() == ".dae" and "<up_axis>Z_UP</up_axis>" in path.read_text(errors="replace").replace(" ", ""):
+        corners = np.stack([corners[:, 0], -corners[:, 2], corners[:, 1]], axis=1)  # assimp's Y-up back to Z-up
+    tolerance = 0.1 * float(np.ptp(reference, axis=0).max()) + 0.002  # the loaders differ by millimetres
+    if not (np.allclose(corners.min(0), reference.min(0), atol=tolerance)
+            and np.allclose(corners.max(0), reference.max(0), atol=tolerance)):
+        return None
+    vertices, inverse = np.unique(np.round(corners, 7), axis=0, return_inverse=True)
+    return vertices, inverse.reshape(-1, 3).astype(np.int32)
 
 
 def _robot_rgba(default: tuple, root: bool) -> list:
@@ -236,7 +288,7 @@ def render_model(spec, terrain):
     mj.visual.headlight.ambient = [0.12, 0.12, 0.12]
     mj.visual.headlight.diffuse = [0.18, 0.18, 0.18]
     mj.visual.headlight.specular = [0.0, 0.0, 0.0]
-    mj.visual.quality.offsamples = 2
+    mj.visual.quality.offsamples = 0  # multisampling would cost 2.4x the CPU time per frame with software GL
     return mj.compile(), bool(meshes)
 
 
@@ -348,8 +400,8 @@ def write_video(frames: list[np.ndarray], path: Path, fps: int) -> Path:
         if suffix == ".gif":
             _write_gif(frames, partial, fps)
         else:
-            iio.imwrite(partial, np.stack(frames), fps=fps, codec="libx264", plugin="FFMPEG",
-                        output_params=["-pix_fmt", "yuv420p", "-crf", "28"], macro_block_size=8)
+            iio.imwrite(partial, np.stack(frames), fps=fps, codec="libx264", plugin="FFMPEG", pixelformat="yuv420p",
+                        output_params=["-crf", "28"], macro_block_size=8)
         os.replace(partial, path)
     except Exception as exc:
         raise FrbenchError(f"--out {path}: cannot write the video ({exc})") from None
