@@ -118,3 +118,15 @@ def test_record_video_writes_an_episode(tmp_path):
     env.close()
     videos = list((tmp_path / "videos").glob("*.mp4"))
     assert len(videos) == 1 and videos[0].stat().st_size > 1000
+
+
+def test_stable_baselines3_check_env_passes_with_warnings_as_errors():
+    sb3_checker = pytest.importorskip("stable_baselines3.common.env_checker")
+
+    env = gymnasium.make(ENV_ID, robot="go2", backend="mujoco")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            sb3_checker.check_env(env.unwrapped, warn=True, skip_render_check=True)
+    finally:
+        env.close()
