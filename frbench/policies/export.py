@@ -36,14 +36,17 @@ def onnx_module(policy):
 
 def export_onnx(policy_path: str, out: Path) -> Path:
     """Write ``out`` (.onnx) and its sidecar `sidecar_path(out)`; returns the ONNX path."""
+    from frbench.io import atomic_write_bytes, atomic_write_text, check_output_path
+
+    check_output_path(out, suffixes=(".onnx",))  # before torch is imported or anything loaded
+    check_output_path(sidecar_path(out))
+    import io
+
     import torch
 
-    from frbench.io import atomic_write_bytes, atomic_write_text, check_output_path
     from frbench.policies.learned import LearnedPolicy
     from frbench.policies.registry import load_policy
 
-    check_output_path(out, suffixes=(".onnx",))
-    check_output_path(sidecar_path(out))
     policy = load_policy(policy_path)
     if not isinstance(policy, LearnedPolicy):
         raise PolicyError(f"policy {policy_path!r} is not a trained checkpoint; only trained policies export to ONNX")
@@ -53,8 +56,6 @@ def export_onnx(policy_path: str, out: Path) -> Path:
                           "Run it through frbench (frbench evaluate / render) instead")
     j = policy.num_actions
     model, input_names, output_names, inputs = onnx_module(policy)
-    import io
-
     buffer = io.BytesIO()
     torch.onnx.export(model, inputs, buffer, export_params=True, opset_version=18,
                       input_names=input_names, output_names=output_names, dynamo=False,
