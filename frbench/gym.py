@@ -3,20 +3,46 @@
 ``import frbench.gym`` registers (this module's only purpose; ``import frbench``
 registers nothing):
 
-* ``gymnasium.make("frbench/FallRecovery-v0", robot="go2", backend="mujoco",
+* ``gymnasium.make("frbench/FallRecovery-v1", robot="go2", backend="mujoco",
   terrain="flat", level=1)`` — one environment;
-* ``gymnasium.make_vec("frbench/FallRecovery-v0", num_envs=64, ...)`` — a
-  batched `FallRecoveryVectorEnv` on one backend batch.
+* ``gymnasium.make_vec("frbench/FallRecovery-v1", num_envs=64,
+  vectorization_mode="vector_entry_point", ...)`` — a batched
+  `FallRecoveryVectorEnv` on one backend batch.
 
-Observation: the paper's o_t as a flat float32 vector (6 + 3·n_joints: body
-angular velocity, projected gravity, q − q̊, q̇, previous target − q̊).
-Action: joint targets q* [rad] in the canonical order, within the joint limits.
-Reward: `upright_reward` (the paper's upright-orientation term, weight 6,
-σ = 0.4); the full reward table lives with the trainer. Episodes last 5 s
-(250 steps) and end by truncation, all environments together; the vector
-environment resets them in the same step (``AutoresetMode.SAME_STEP``), with
-the last observation in ``infos["final_obs"]``. ``infos["success"]`` holds the
-benchmark's success test.
+The episodes are the benchmark's (`frbench.tasks.recovery.RecoveryTask`: the
+same fallen starts, settle, physics, success test and metrics as ``frbench
+evaluate``), 5 s = 250 control steps at 50 Hz.
+
+Action a (n_joints,) in ``Box(-1, 1)``: joint targets
+q* = q̊ + ``action_scale`` · a [rad] (q̊ the robot's default pose, canonical
+joint order; then clipped to the joint limits), the mapping and scale (1.0) of
+the shipped policies, whose ONNX sidecar states the same. Actions outside the
+box are clipped to it.
+
+Observation (6 + 3·n_joints,) float32, the paper's o_t: body angular velocity
+[rad/s], projected gravity, q − q̊ [rad], q̇ [rad/s], previous target − q̊ [rad];
+bounded (`observation_bounds`: ±`MAX_ANGULAR_VELOCITY`, ±1, the joint range
+around q̊, ±`MAX_JOINT_VELOCITY`) and clipped to those bounds.
+
+Reward: frbench's training reward, the named terms of
+`frbench.training.rewards.compute_rewards` with the tables of the trainer
+(``reward="training"``: `training_reward_config` for quadrupeds,
+`humanoid_reward_config` for humanoids; ``"paper"``: the paper's table; or any
+`RewardConfig`); every term's weighted value is in ``info["reward_terms"]``.
+
+``info`` also holds the success test's state after each step: ``success``
+(recovered so far), ``upright`` (the success test's pose condition now),
+``time_to_recover`` [s] (None, or NaN in the vector env, until recovered), ``diverged``; and at the
+episode's end ``episode_metrics``, the record ``frbench evaluate`` writes
+(success, time to recover, displacements, energy, smoothness, peak contact
+force, rolled over, diverged).
+
+Episodes end by truncation, all environments together; the vector environment
+resets them in the same step (``AutoresetMode.SAME_STEP``), the last
+observation in ``infos["final_obs"]``. ``render_mode="rgb_array"`` draws with
+`frbench.render.SceneRenderer` (visual meshes, following camera, caption), so
+``gymnasium.wrappers.RecordVideo`` records episodes; headless on Linux it sets
+``MUJOCO_GL=egl`` before mujoco is first imported.
 """
 
 from __future__ import annotations
@@ -26,54 +52,194 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from frbench.robots import get_robot
-from frbench.tasks.initial_states import FallenStarts, draw_start
-from frbench.tasks.observations import flatten
-from frbench.tasks.recovery import EPISODE_STEPS, RecoveryTask
+ENV_ID = "frbench/FallRecovery-v1"
+#: q* = q̊ + ACTION_SCALE · a, as the shipped policies (their checkpoints' and ONNX sidecars' action_scale).
+ACTION_SCALE = 1.0
+#: Observation bounds of the body angular velocity [rad/s] and joint velocities [rad/s] (values are clipped).
+MAX_ANGULAR_VELOCITY, MAX_JOINT_VELOCITY = 50.0, 50.0
+#: Frames per second of ``render`` videos (every second control step of 50 Hz).
+RENDER_FPS = 25
+#: Reward presets: name → function of the robot kind giving a `RewardConfig`.
+REWARD_PRESETS = ("training", "paper")
 
-ENV_ID = "frbench/FallRecovery-v0"
+
+def reward_config(reward, kind: str):
+    """The `RewardConfig` of preset ``reward`` (``"training"``: the trainer's table for robots of ``kind``;
+    ``"paper"``: the paper's) or ``reward`` itself if it is one."""
+    from frbench.training.env import humanoid_reward_config, training_reward_config
+    from frbench.training.rewards import RewardConfig
+
+    if isinstance(reward, RewardConfig):
+        return reward
+    if reward == "training":
+        return humanoid_reward_config() if kind == "humanoid" else training_reward_config()
+    if reward == "paper":
+        return RewardConfig()
+    raise ValueError(f"reward={reward!r}: expected one of {', '.join(REWARD_PRESETS)} or a RewardConfig")
 
 
-def upright_reward(obs_dict: dict[str, np.ndarray], sigma: float = 0.4, weight: float = 6.0) -> np.ndarray:
-    """The paper's upright orientation term w·exp(−(g_z + 1)² / (2σ²)), (N,)."""
-    gz = obs_dict["projected_gravity"][:, 2]
-    return weight * np.exp(-((gz + 1.0) ** 2) / (2 * sigma**2))
+def observation_bounds(spec) -> tuple[np.ndarray, np.ndarray]:
+    """(low, high) of o_t, each (6 + 3·n_joints,) float32 (see the module docstring)."""
+    default = np.asarray(spec.default_pose)
+    lower, upper = np.asarray(spec.joint_lower) - default, np.asarray(spec.joint_upper) - default
+    n = spec.n_joints
+    high = np.concatenate([np.full(3, MAX_ANGULAR_VELOCITY), np.ones(3), upper, np.full(n, MAX_JOINT_VELOCITY), upper])
+    low = np.concatenate([np.full(3, -MAX_ANGULAR_VELOCITY), -np.ones(3), lower, np.full(n, -MAX_JOINT_VELOCITY), lower])
+    return low.astype(np.float32), high.astype(np.float32)
 
 
 class FallRecoveryVectorEnv(VectorEnv):
-    """``num_envs`` recovery episodes of one robot on one terrain, batched in one backend."""
+    """``num_envs`` recovery episodes of one robot on one terrain, batched in one backend (module docstring)."""
 
-    metadata = {"autoreset_mode": AutoresetMode.SAME_STEP, "render_modes": []}
+    metadata = {"autoreset_mode": AutoresetMode.SAME_STEP, "render_modes": ["rgb_array"], "render_fps": RENDER_FPS}
 
     def __init__(self, num_envs: int = 1, robot: str = "go2", backend: str = "mujoco", terrain: str = "flat",
-                 level: int = 1, terrain_seed: int = 0, max_episode_steps: int | None = None):
+                 level: int = 1, terrain_seed: int = 0, reward="training", action_scale: float = ACTION_SCALE,
+                 render_mode: str | None = None, render_size: tuple[int, int] = (640, 480),
+                 max_episode_steps: int | None = None):
+        from frbench.robots import get_robot
+        from frbench.tasks.recovery import EPISODE_STEPS
         from frbench.terrains import make_terrain
 
         if max_episode_steps not in (None, EPISODE_STEPS):
             raise ValueError(f"max_episode_steps={max_episode_steps}: the protocol's episodes last {EPISODE_STEPS} steps")
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode={render_mode!r}: expected None or 'rgb_array'")
+        if render_mode is not None:
+            from frbench.render import use_headless_gl
 
-        self.spec_robot = get_robot(robot)
-        self.num_envs = num_envs
+            use_headless_gl()  # before the simulator imports mujoco
+        from frbench.tasks.recovery import RecoveryTask
+
+        self.spec_robot = spec = get_robot(robot)
+        self.num_envs, self.backend_name, self.render_mode, self.render_size = num_envs, backend, render_mode, render_size
+        self.action_scale = float(action_scale)
         self.terrain = make_terrain(terrain, level, terrain_seed)
-        self.task = RecoveryTask(self.spec_robot, backend, self.terrain, num_envs)
-        n = self.spec_robot.n_joints
-        self.default_pose = np.asarray(self.spec_robot.default_pose)
-        lower = np.asarray(self.spec_robot.joint_lower, dtype=np.float32)
-        upper = np.asarray(self.spec_robot.joint_upper, dtype=np.float32)
-        self.single_observation_space = gymnasium.spaces.Box(-np.inf, np.inf, shape=(6 + 3 * n,), dtype=np.float32)
-        self.single_action_space = gymnasium.spaces.Box(lower, upper, dtype=np.float32)
+        self.terrain_label = f"{terrain} level {level}"
+        self.reward_cfg = reward_config(reward, spec.kind)
+        self.task = RecoveryTask(spec, backend, self.terrain, num_envs)
+        self.episode_steps = EPISODE_STEPS
+        n = spec.n_joints
+        self.default_pose = np.asarray(spec.default_pose)
+        self.lower, self.upper = np.asarray(spec.joint_lower), np.asarray(spec.joint_upper)
+        self.upper_body = np.array([not any(w in name for w in ("hip", "knee", "ankle")) for name in spec.joint_names])
+        low, high = observation_bounds(spec)
+        self.single_observation_space = gymnasium.spaces.Box(low, high, dtype=np.float32)
+        self.single_action_space = gymnasium.spaces.Box(-1.0, 1.0, shape=(n,), dtype=np.float32)
         self.observation_space = batch_space(self.single_observation_space, num_envs)
         self.action_space = batch_space(self.single_action_space, num_envs)
         self._rng = np.random.default_rng()
+        self._renderer = None
+        self._head = None
+
+    # -- observations, actions, rewards ---------------------------------------------------------------------
 
     def _flat(self, obs: dict) -> np.ndarray:
-        return flatten(obs, self.default_pose).astype(np.float32)
+        from frbench.tasks.observations import flatten
+
+        flat = np.nan_to_num(flatten(obs, self.default_pose), nan=0.0, posinf=0.0, neginf=0.0)
+        return np.clip(flat, self.single_observation_space.low, self.single_observation_space.high).astype(np.float32)
+
+    def targets(self, actions) -> np.ndarray:
+        """Joint targets q* (N, n_joints) [rad] of normalised actions (N, n_joints) (clipped to [−1, 1])."""
+        actions = np.clip(np.asarray(actions, dtype=np.float64).reshape(self.num_envs, -1), -1.0, 1.0)
+        return self.default_pose + self.action_scale * actions
+
+    def _head_heights(self) -> np.ndarray:
+        """Humanoids: head height above the terrain (N,) [m], the trainer's head point (Pinocchio)."""
+        import pinocchio
+
+        from frbench.robots import ground_truth
+        from frbench.terrains import height_at
+        from frbench.training.env import HEAD_FRAME, HEAD_OFFSET_M
+
+        if self._head is None:
+            robot = ground_truth.load(self.spec_robot)
+            self._head = (robot, robot.model.createData(), robot.model.getFrameId(HEAD_FRAME))
+        robot, data, frame_id = self._head
+        s = self.task.state
+        heads = np.zeros((self.num_envs, 3))
+        for i in range(self.num_envs):
+            pinocchio.framesForwardKinematics(robot.model, data, ground_truth.configuration(
+                robot, s.base_pos[i], s.base_quat[i], s.q[i]))
+            frame = data.oMf[frame_id]
+            heads[i] = frame.translation + frame.rotation[:, 2] * HEAD_OFFSET_M
+        return heads[:, 2] - height_at(self.terrain, heads[:, :2])
+
+    def _reward(self, actions: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        from frbench.backends.base import CONTROL_DT
+        from frbench.training.rewards import RewardInputs, compute_rewards
+
+        s, c = self.task.state, self.task.contacts
+        inputs = RewardInputs(
+            projected_gravity=self.task.observation()["projected_gravity"], q=s.q, qd=s.qd, qd_prev=self._qd_prev,
+            tau=s.tau, action=actions, action_prev=self._actions[0], q_stand=self.default_pose, q_lower=self.lower,
+            q_upper=self.upper, foot_contact=c.foot_contact, body_contact=c.group_contact.any(axis=1),
+            knee_force_xy=c.knee_force_xy, base_xy=s.base_pos[:, :2], init_xy=self.task.start_xy, dt=CONTROL_DT,
+            base_height=self.task.signals.height, nominal_height=self.spec_robot.nominal_height,
+            action_prev2=self._actions[1], upper_body=self.upper_body,
+        )
+        if "head_height" in self.reward_cfg.weights:
+            inputs.head_height = self._head_heights()
+            inputs.nominal_head_height = self._nominal_head
+        total, terms = compute_rewards(inputs, self.reward_cfg)
+        alive = ~(self.task.backend.diverged | self.task.settle_diverged)
+        return np.where(alive, np.nan_to_num(total), 0.0), {k: np.where(alive, np.nan_to_num(v), 0.0) for k, v in terms.items()}
+
+    # -- episodes -------------------------------------------------------------------------------------------
 
     def _new_episodes(self) -> dict:
+        from frbench.tasks.initial_states import FallenStarts, draw_start
+
         rows = [draw_start(self.spec_robot, self.terrain, self._rng) for _ in range(self.num_envs)]
         starts = FallenStarts(np.array([r[0] for r in rows]), np.array([r[1] for r in rows]),
                               np.array([r[2] for r in rows]), [r[3] for r in rows])
-        return self.task.reset(starts)
+        obs = self.task.reset(starts)
+        self._qd_prev = self.task.state.qd.copy()
+        zeros = np.zeros((self.num_envs, self.spec_robot.n_joints))
+        self._actions = (zeros, zeros)  # a_{t-1}, a_{t-2}
+        if "head_height" in self.reward_cfg.weights and not hasattr(self, "_nominal_head"):
+            self._nominal_head = self._standing_head_height()
+        if self._renderer is not None:
+            for k in range(self.num_envs):
+                self._renderer.forget(k)
+        return obs
+
+    def _standing_head_height(self) -> float:
+        """The head's height [m] with the robot standing in its default pose on flat ground."""
+        import pinocchio
+
+        from frbench.robots import ground_truth
+        from frbench.training.env import HEAD_FRAME, HEAD_OFFSET_M
+
+        robot = ground_truth.load(self.spec_robot)
+        data = robot.model.createData()
+        pinocchio.framesForwardKinematics(robot.model, data, ground_truth.configuration(
+            robot, np.array([0.0, 0.0, self.spec_robot.nominal_height]), np.array([1.0, 0.0, 0.0, 0.0]),
+            self.default_pose))
+        frame = data.oMf[robot.model.getFrameId(HEAD_FRAME)]
+        return float((frame.translation + frame.rotation[:, 2] * HEAD_OFFSET_M)[2])
+
+    def _success_info(self) -> dict:
+        tracker, signals = self.task.success, self.task.signals
+        if self.spec_robot.kind == "humanoid":
+            upright = signals.height > tracker.up_height
+        else:
+            upright = tracker.upright(signals)
+        return {"success": tracker.success.copy(), "upright": np.asarray(upright, dtype=bool),
+                "time_to_recover": tracker.time_to_recover.copy(),
+                "diverged": self.task.backend.diverged | self.task.settle_diverged}
+
+    def episode_metrics(self) -> dict[str, np.ndarray]:
+        """The per-episode record of ``frbench evaluate`` so far, each (N,) (time_to_recover NaN if none)."""
+        success, metrics = self.task.success, self.task.metrics
+        diverged = metrics.diverged | self.task.settle_diverged
+        return {"success": success.success & ~diverged, "time_to_recover": success.time_to_recover.copy(),
+                "final_displacement": metrics.final_displacement.copy(),
+                "max_displacement": metrics.max_displacement.copy(), "energy": metrics.energy.copy(),
+                "smoothness": np.asarray(metrics.smoothness).copy(),
+                "peak_contact_force": metrics.peak_contact_force.copy(), "rolled_over": metrics.rolled_over.copy(),
+                "diverged": diverged.copy()}
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Draw new fallen starts (seeded) for every environment."""
@@ -83,30 +249,61 @@ class FallRecoveryVectorEnv(VectorEnv):
         return self._flat(obs), {}
 
     def step(self, actions):
-        """Apply joint targets (num_envs, n_joints); all episodes truncate together at 250 steps."""
-        obs = self.task.step(np.asarray(actions, dtype=np.float64))
-        reward = upright_reward(obs)
+        """Apply normalised actions (num_envs, n_joints); all episodes truncate together after 250 steps."""
+        actions = np.clip(np.asarray(actions, dtype=np.float64).reshape(self.num_envs, -1), -1.0, 1.0)
+        obs = self.task.step(self.targets(actions))
+        reward, terms = self._reward(actions)
+        self._qd_prev = self.task.state.qd.copy()
+        self._actions = (actions, self._actions[0])
         terminated = np.zeros(self.num_envs, dtype=bool)
-        truncated = np.full(self.num_envs, self.task.t >= EPISODE_STEPS)
-        infos = {"success": self.task.success.success.copy(), "diverged": self.task.backend.diverged.copy()}
+        truncated = np.full(self.num_envs, self.task.t >= self.episode_steps)
+        infos = {**self._success_info(), "reward_terms": terms}
         flat = self._flat(obs)
         if truncated.all():
+            infos["episode_metrics"] = self.episode_metrics()
             infos["final_obs"] = flat
             flat = self._flat(self._new_episodes())
         return flat, reward.astype(np.float32), terminated, truncated, infos
 
+    # -- rendering ------------------------------------------------------------------------------------------
+
+    def render_frame(self, row: int = 0) -> np.ndarray:
+        """An RGB image (H, W, 3) uint8 of environment ``row`` now, captioned with time, success and simulator."""
+        from frbench.backends.base import CONTROL_DT
+        from frbench.commands.render import SIMULATOR_LABELS
+        from frbench.render import SceneRenderer, caption
+
+        if self._renderer is None:
+            self._renderer = SceneRenderer(self.spec_robot, self.terrain, *self.render_size)
+        s = self.task.state
+        recovered = self.task.success.success[row] if hasattr(self.task, "success") else False
+        text = caption(f"{self.spec_robot.name}, {self.terrain_label}",
+                       SIMULATOR_LABELS.get(self.backend_name, self.backend_name), self.task.t * CONTROL_DT,
+                       float(self.task.success.time_to_recover[row]) if recovered else None)
+        return self._renderer.frame(s.base_pos[row], s.base_quat[row], s.q[row], text, track=row)
+
+    def render(self):
+        """``render_mode="rgb_array"``: one frame per environment (a tuple); otherwise None."""
+        if self.render_mode != "rgb_array":
+            return None
+        return tuple(self.render_frame(k) for k in range(self.num_envs))
+
     def close(self, **kwargs):
-        """Free the simulator."""
+        """Free the simulator and the renderer."""
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
         self.task.close()
 
 
 class FallRecoveryEnv(gymnasium.Env):
-    """One recovery episode at a time (a `FallRecoveryVectorEnv` of size 1)."""
+    """One recovery episode at a time (a `FallRecoveryVectorEnv` of size 1); see the module docstring."""
 
-    metadata = {"render_modes": []}
+    metadata = {"render_modes": ["rgb_array"], "render_fps": RENDER_FPS}
 
-    def __init__(self, **kwargs):
-        self._vector = FallRecoveryVectorEnv(num_envs=1, **kwargs)
+    def __init__(self, render_mode: str | None = None, **kwargs):
+        self._vector = FallRecoveryVectorEnv(num_envs=1, render_mode=render_mode, **kwargs)
+        self.render_mode = render_mode
         self.observation_space = self._vector.single_observation_space
         self.action_space = self._vector.single_action_space
 
@@ -117,26 +314,48 @@ class FallRecoveryEnv(gymnasium.Env):
         return obs[0], info
 
     def step(self, action):
-        """Apply joint targets (n_joints,) [rad]."""
-        obs = self._vector.task.step(np.asarray(action, dtype=np.float64)[None])
-        reward = float(upright_reward(obs)[0])
-        truncated = self._vector.task.t >= EPISODE_STEPS
-        info = {"success": bool(self._vector.task.success.success[0])}
-        return self._vector._flat(obs)[0], reward, False, truncated, info
+        """Apply a normalised action (n_joints,) in [−1, 1]: q* = q̊ + action_scale · a."""
+        vector = self._vector
+        actions = np.clip(np.asarray(action, dtype=np.float64)[None], -1.0, 1.0)
+        obs = vector.task.step(vector.targets(actions))
+        reward, terms = vector._reward(actions)
+        vector._qd_prev = vector.task.state.qd.copy()
+        vector._actions = (actions, vector._actions[0])
+        truncated = vector.task.t >= vector.episode_steps
+        info = _first_row(vector._success_info())
+        info["reward_terms"] = {k: float(v[0]) for k, v in terms.items()}
+        if truncated:
+            info["episode_metrics"] = _first_row(vector.episode_metrics())
+        return vector._flat(obs)[0], float(reward[0]), False, bool(truncated), info
+
+    def render(self):
+        """``render_mode="rgb_array"``: an RGB image (H, W, 3) uint8; otherwise None."""
+        return self._vector.render_frame(0) if self.render_mode == "rgb_array" else None
 
     def close(self):
-        """Free the simulator."""
+        """Free the simulator and the renderer."""
         self._vector.close()
 
 
+def _first_row(values: dict[str, np.ndarray]) -> dict:
+    """Row 0 of (N,) arrays as Python scalars, NaN (no time to recover yet) as None."""
+    out = {}
+    for key, value in values.items():
+        item = value[0].item()
+        out[key] = None if isinstance(item, float) and np.isnan(item) else item
+    return out
+
+
 def register_envs() -> None:
-    """Register ``frbench/FallRecovery-v0`` (idempotent)."""
+    """Register ``frbench/FallRecovery-v1`` (idempotent)."""
+    from frbench.tasks.protocol import CONTROL_DT, EPISODE_SECONDS
+
     if ENV_ID not in gymnasium.registry:
         gymnasium.register(
             id=ENV_ID,
             entry_point="frbench.gym:FallRecoveryEnv",
             vector_entry_point="frbench.gym:FallRecoveryVectorEnv",
-            max_episode_steps=EPISODE_STEPS,
+            max_episode_steps=int(round(EPISODE_SECONDS / CONTROL_DT)),
             disable_env_checker=True,
         )
 

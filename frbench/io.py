@@ -62,3 +62,39 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
         Path(tmp).unlink(missing_ok=True)
         raise
     return path
+
+
+def check_output_path(path: str | os.PathLike, option: str = "--out", suffixes: tuple[str, ...] = (),
+                      folder: bool = False) -> Path:
+    """Fail fast, before any work, unless ``path`` can be written; creates and leaves nothing.
+
+    ``path`` is a file to write (``folder=False``, its suffix one of ``suffixes`` when given) or a folder to
+    write files into (``folder=True``). The nearest existing ancestor must be a folder in which a file can
+    actually be created: a temporary file is made there and removed at once (permission bits alone do not
+    tell, e.g. for root or under /proc).
+
+    Raises:
+        FrbenchError: one line naming ``option``, the path and what is wrong.
+    """
+    path = Path(path)
+    label = f"{option} {path}"
+    if suffixes and not folder and path.suffix.lower() not in suffixes:
+        raise FrbenchError(f"{label}: expected a {' or '.join(suffixes)} file")
+    if path.exists():
+        if folder and not path.is_dir():
+            raise FrbenchError(f"{label}: is a file, expected a folder")
+        if not folder and path.is_dir():
+            raise FrbenchError(f"{label}: is a folder, expected a file path")
+    existing = next(p for p in [path if folder else path.parent, *path.parents] if p.exists() or p == Path(p.anchor))
+    existing = existing if str(existing) else Path(".")
+    if not existing.is_dir():
+        raise FrbenchError(f"{label}: cannot create it, {existing} is a file, not a folder")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".frbench-probe-", dir=existing)
+    except OSError as exc:
+        raise FrbenchError(f"{label}: cannot write in {existing} ({exc.strerror or exc})") from None
+    os.close(fd)
+    os.unlink(probe)
+    if path.is_file() and not os.access(path, os.W_OK):
+        raise FrbenchError(f"{label}: the file exists and is not writable")
+    return path

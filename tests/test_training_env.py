@@ -102,7 +102,7 @@ def test_a_run_checkpoints_resumes_and_its_policy_acts_identically(tmp_path, mon
     from onnx.reference import ReferenceEvaluator
     from tensordict import TensorDict
 
-    from frbench.policies.export import export_onnx
+    from frbench.policies.export import export_onnx, sidecar_path
 
     path = export_onnx(str(tmp_path / "run"), tmp_path / "policy.onnx")
     onnx.checker.check_model(onnx.load(path))
@@ -111,7 +111,7 @@ def test_a_run_checkpoints_resumes_and_its_policy_acts_identically(tmp_path, mon
     with torch.inference_mode():
         reference = policy.actor(TensorDict({"policy": torch.tensor(o), "history": torch.tensor(h)}, batch_size=[1]))
     np.testing.assert_allclose(exported, reference.numpy(), atol=1e-5)
-    assert json.loads(path.with_suffix(".json").read_text())["inputs"] == {"obs": [1, 42], "history": [1, 210]}
+    assert json.loads(sidecar_path(path).read_text())["inputs"] == {"obs": ["batch", 42], "history": ["batch", 210]}
 
 
 def test_a_resumed_run_can_start_a_reward_stage_with_the_papers_motion_penalties(tmp_path):

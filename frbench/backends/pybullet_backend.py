@@ -23,8 +23,9 @@ import os
 import sys
 
 import numpy as np
-import pybullet as p
-from pybullet_utils.bullet_client import BulletClient
+
+from frbench.backends.bullet import BulletClient
+from frbench.backends.bullet import pybullet as p
 
 from frbench.backends.base import (
     CONTROL_DT,

@@ -62,7 +62,10 @@ def run_standing(args) -> int:
     import json
 
     from frbench.analysis.standing import format_report, standing_analysis
-    from frbench.io import atomic_write_text
+    from frbench.io import atomic_write_text, check_output_path
+
+    if args.out is not None:
+        check_output_path(args.out)
 
     report = standing_analysis(args.policy, args.robot, tuple(b.strip() for b in args.backends.split(",")),
                                args.terrain, args.level, tuple(int(s) for s in args.seeds.split(",")), args.episodes)
@@ -94,8 +97,10 @@ def run_compare(args) -> int:
         sim_to_sim_table,
     )
     from frbench.analysis.success_plots import load_results
-    from frbench.io import atomic_write_text
+    from frbench.io import atomic_write_text, check_output_path
 
+    if args.out is not None:
+        check_output_path(args.out)
     results = load_results(args.results)
     text = (f"Level-10 success [%], ours / the paper's\n\n{level10_table(results)}\n"
             f"MuJoCo / PyBullet success [%] per family (difference), mean |gap| over robot x level cells [points]\n\n"
@@ -117,8 +122,9 @@ def run_plots(args) -> int:
         plot_families,
         success_table,
     )
-    from frbench.io import atomic_write_text
+    from frbench.io import atomic_write_text, check_output_path
 
+    check_output_path(args.out, folder=True)
     table = success_table(load_results(args.results), series=args.lines)
     paths = plot_families(table, args.out, title=args.title)
     text = markdown_table(table)
@@ -133,9 +139,11 @@ def run(args) -> int:
     import numpy as np
 
     from frbench.analysis.mcp_quality import evaluate_mcp, write_report
+    from frbench.io import check_output_path
     from frbench.robots import get_robot
     from frbench.training.randomization import morphology_specs, sample_morphologies
 
+    check_output_path(args.out, folder=True)
     specs = [get_robot(name.strip()) for name in args.robots.split(",") if name.strip()]
     held_out = sample_morphologies(args.held_out, np.random.default_rng(987654321))
     specs += morphology_specs(held_out, prefix="heldout")

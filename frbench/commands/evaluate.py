@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from pathlib import Path
 
@@ -42,17 +41,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def _check_writable(path: Path) -> None:
-    parent = path.parent if str(path.parent) else Path(".")
-    if path.exists() and path.is_dir():
-        raise FrbenchError(f"--out {path}: is a folder, expected a file path")
-    existing = next((p for p in [parent, *parent.parents] if p.exists()), Path("."))
-    if not existing.is_dir() or not os.access(existing, os.W_OK):
-        raise FrbenchError(f"--out {path}: cannot write there ({existing} is not a writable folder)")
-    if path.exists() and not os.access(path, os.W_OK):
-        raise FrbenchError(f"--out {path}: the file exists and is not writable")
-
-
 def run(args) -> int:
     """Validate, run the grid with a progress bar, print the table, write the results atomically."""
     from tqdm import tqdm
@@ -64,14 +52,14 @@ def run(args) -> int:
         validate,
     )
     from frbench.evaluation.results import initial_pose_table, results_table
-    from frbench.io import atomic_write_text
+    from frbench.io import atomic_write_text, check_output_path
 
     request = EvaluationRequest(
         policy=args.policy, robots=args.robots, backends=args.backends, terrains=args.terrains,
         levels=args.levels, seeds=args.seeds, episodes=args.episodes, noise=args.noise, jobs=args.jobs,
     )
     out = args.out or Path("results") / f"{Path(args.policy).stem or 'policy'}.json"
-    _check_writable(out)
+    check_output_path(out)
     policy = validate(request)
     cells = request.cells()
     print(

@@ -1,4 +1,8 @@
-"""``frbench policies``: the policies frbench can load, and the robots each supports."""
+"""``frbench policies``: the policies frbench can load, and the robots each supports.
+
+Listing loads no network: a shipped checkpoint is described from the config stored in it (read without
+torch, `frbench.policies.registry.checkpoint_metadata`); built-in and plugin policies from their docstring.
+"""
 
 from __future__ import annotations
 
@@ -13,23 +17,45 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def _checkpoint_supports(metadata: dict, spec) -> bool:
+    """The rule of `LearnedPolicy.supports` from a checkpoint's metadata (base controllers are checked by name)."""
+    from frbench.policies.registry import load_policy
+
+    if spec.kind != metadata.get("robot_kind", "quadruped") or spec.n_joints != int(metadata.get("num_actions", -1)):
+        return False
+    base = json.loads(metadata.get("config_json") or "{}").get("env", {}).get("base_controller")
+    return base is None or load_policy(base).supports(spec)
+
+
 def policy_rows() -> list[dict]:
-    """One row per policy: name, supported robots, checkpoint."""
-    from frbench.policies.registry import load_policy, policy_names
+    """One row per policy: name, supported robots, checkpoint, description (and, for checkpoints, method,
+    env steps and training time [s])."""
+    from frbench.policies.registry import (
+        SHIPPED_CHECKPOINTS,
+        checkpoint_metadata,
+        describe_checkpoint,
+        load_policy,
+        policy_names,
+        shipped_checkpoint,
+    )
     from frbench.robots import get_robot, robot_names
 
     specs = [get_robot(name) for name in robot_names()]
     rows = []
     for name in policy_names():
+        if name in SHIPPED_CHECKPOINTS:
+            path = shipped_checkpoint(name)
+            metadata = checkpoint_metadata(path)
+            rows.append({"name": name, "robots": [s.name for s in specs if _checkpoint_supports(metadata, s)],
+                         "checkpoint": str(path), "description": describe_checkpoint(metadata),
+                         "method": metadata.get("method"), "env_steps": metadata.get("env_steps"),
+                         "training_s": metadata.get("wall_s")})
+            continue
         policy = load_policy(name)
-        rows.append(
-            {
-                "name": name,
-                "robots": [spec.name for spec in specs if policy.supports(spec)],
-                "checkpoint": str(policy.checkpoint) if getattr(policy, "checkpoint", None) else None,
-                "description": (type(policy).__doc__ or "").strip().splitlines()[0] if type(policy).__doc__ else "",
-            }
-        )
+        doc = (type(policy).__doc__ or "").strip()
+        rows.append({"name": name, "robots": [spec.name for spec in specs if policy.supports(spec)],
+                     "checkpoint": str(policy.checkpoint) if getattr(policy, "checkpoint", None) else None,
+                     "description": doc.splitlines()[0] if doc else ""})
     return rows
 
 
@@ -39,8 +65,9 @@ def run(args) -> int:
     if args.json:
         print(json.dumps(rows, indent=2))
         return 0
+    width = max(len(row["name"]) for row in rows) + 2
     for row in rows:
-        print(f"{row['name']:<10} robots: {', '.join(row['robots'])}")
+        print(f"{row['name']:<{width}}robots: {', '.join(row['robots'])}")
         if row["description"]:
-            print(f"{'':<10} {row['description']}")
+            print(f"{'':<{width}}{row['description']}")
     return 0

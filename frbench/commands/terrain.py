@@ -32,30 +32,26 @@ def run_list(args) -> int:
 
 def run_show(args) -> int:
     """Drop a fallen robot on the terrain, settle it in MuJoCo, draw it."""
-    import os
+    from frbench.render import use_headless_gl
 
-    os.environ.setdefault("MUJOCO_GL", "egl")
-    import imageio.v3 as iio
-
+    use_headless_gl()  # before anything imports mujoco
+    from frbench.commands.render import parse_size
     from frbench.errors import FrbenchError
-    from frbench.render import SceneRenderer
+    from frbench.io import check_output_path
+    from frbench.render import SceneRenderer, write_png
     from frbench.robots import get_robot
     from frbench.tasks.initial_states import draw_starts
     from frbench.tasks.recovery import RecoveryTask
     from frbench.terrains import FAMILIES, make_terrain
 
+    check_output_path(args.out, suffixes=(".png",))
     if args.family not in FAMILIES:
         from frbench.errors import unknown_name
 
         raise unknown_name("terrain", args.family, FAMILIES)
     if not 1 <= args.level <= 10:
         raise FrbenchError(f"--level {args.level} is out of range: levels are 1 to 10")
-    if args.out.suffix.lower() != ".png":
-        raise FrbenchError(f"--out {args.out}: expected a .png file")
-    try:
-        width, height = (int(v) for v in args.size.lower().split("x"))
-    except ValueError:
-        raise FrbenchError(f"--size {args.size!r}: expected WIDTHxHEIGHT, e.g. 800x600") from None
+    width, height = parse_size(args.size)
     spec = get_robot(args.robot)
     terrain = make_terrain(args.family, args.level, args.seed)
     starts = draw_starts(spec, terrain, args.family, args.level, args.seed, [0])
@@ -66,14 +62,14 @@ def run_show(args) -> int:
     finally:
         task.close()
     renderer = SceneRenderer(spec, terrain, width, height)
-    renderer.camera.distance *= 1.6
-    renderer.camera.elevation = -30.0
+    renderer.camera.distance *= 2.0
+    renderer.camera.elevation = -32.0
     try:
-        image = renderer.frame(state.base_pos[0], state.base_quat[0], state.q[0])
+        text = f"{args.family} level {args.level} (seed {args.seed})\n{spec.name}, {starts.kinds[0]} start"
+        image = renderer.frame(state.base_pos[0], state.base_quat[0], state.q[0], text)
     finally:
         renderer.close()
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    iio.imwrite(args.out, image)
+    write_png(image, args.out)
     print(f"{args.family} level {args.level} (seed {args.seed}): {terrain.description}; "
           f"{len(terrain.boxes)} boxes; {spec.name} {starts.kinds[0]} start. Wrote {args.out}")
     return 0

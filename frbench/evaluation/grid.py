@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from frbench.errors import FrbenchError, unknown_name
 from frbench.evaluation.results import aggregate_cells, sim_to_sim, summarize
 from frbench.evaluation.runner import Cell, run_cell
+from frbench.interrupts import children_ignore_sigint, terminate_pool
 from frbench.tasks.protocol import PROTOCOL_VERSION, RESULTS_SCHEMA_VERSION
 
 
@@ -94,11 +95,16 @@ def run_grid(request: EvaluationRequest, progress=None) -> list[dict]:
 
         context = multiprocessing.get_context("spawn")
         with ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=_worker_init) as pool:
-            futures = {pool.submit(run_cell, cell, request.policy, request.noise): cell for cell in cells}
-            for future in as_completed(futures):
-                records += future.result()
-                if progress:
-                    progress(futures[future])
+            try:
+                with children_ignore_sigint():  # the workers start (at submit) ignoring Ctrl-C
+                    futures = {pool.submit(run_cell, cell, request.policy, request.noise): cell for cell in cells}
+                for future in as_completed(futures):
+                    records += future.result()
+                    if progress:
+                        progress(futures[future])
+            except KeyboardInterrupt:
+                terminate_pool(pool)
+                raise
     records.sort(key=lambda r: (r["robot"], r["backend"], r["terrain"], r["level"], r["seed"], r["episode"]))
     return records
 

@@ -1,10 +1,12 @@
 """Export a trained policy to ONNX, estimator included, so it runs without frbench.
 
-The ONNX graph takes the raw (unnormalised) o_t ``obs`` (1, 42) and, for
-estimator methods, the raw ``history`` (1, 5·42, oldest frame first) and
-returns ``actions`` (1, 12); joint targets are q* = q̊ + action_scale · actions.
-The normalisers and the Mass-Contact Predictor are inside the graph. A JSON
-sidecar records the conventions (input layout, action scale, method).
+The ONNX graph takes the raw (unnormalised) o_t ``obs`` (N, 42) and, for
+estimator methods, the raw ``history`` (N, 5·42, oldest frame first) and
+returns ``actions`` (N, 12), N being any batch size (a dynamic axis, named
+``batch``); joint targets are q* = q̊ + action_scale · actions. The
+normalisers and the Mass-Contact Predictor are inside the graph. A JSON
+sidecar ``<file>.onnx.json`` (`sidecar_path`) records the conventions (input
+layout, action scale, method).
 """
 
 from __future__ import annotations
@@ -14,12 +16,34 @@ from pathlib import Path
 
 from frbench.errors import PolicyError
 
+#: Name of the dynamic batch axis of every input and output.
+BATCH_AXIS = "batch"
+
+
+def sidecar_path(onnx_path: Path) -> Path:
+    """``<file>.onnx.json`` beside ``<file>.onnx`` (never ``<file>.json``, which may be a results file)."""
+    return onnx_path.with_name(onnx_path.name + ".json")
+
+
+def onnx_module(policy):
+    """The torch module that is exported, its input names, output names and example inputs (batch 1)."""
+    model = policy.actor.as_onnx(verbose=False)
+    model.eval()
+    inputs = model.get_dummy_inputs()
+    inputs = inputs if isinstance(inputs, tuple) else (inputs,)
+    return model, list(model.input_names), list(model.output_names), inputs
+
 
 def export_onnx(policy_path: str, out: Path) -> Path:
-    """Write ``out`` (.onnx) and ``out`` with suffix .json; returns the ONNX path."""
+    """Write ``out`` (.onnx) and its sidecar `sidecar_path(out)`; returns the ONNX path."""
+    from frbench.io import atomic_write_bytes, atomic_write_text, check_output_path
+
+    check_output_path(out, suffixes=(".onnx",))  # before torch is imported or anything loaded
+    check_output_path(sidecar_path(out))
+    import io
+
     import torch
 
-    from frbench.io import atomic_write_text
     from frbench.policies.learned import LearnedPolicy
     from frbench.policies.registry import load_policy
 
@@ -30,23 +54,23 @@ def export_onnx(policy_path: str, out: Path) -> Path:
         raise PolicyError(f"policy {policy_path!r} is a residual over {policy.base_controller_name!r}, whose targets "
                           "come from Python code outside the network; an ONNX file would hold the residual alone. "
                           "Run it through frbench (frbench evaluate / render) instead")
-    if out.suffix != ".onnx":
-        raise PolicyError(f"--out {out}: expected a .onnx file")
     j = policy.num_actions
-    model = policy.actor.as_onnx(verbose=False)
-    model.eval()
-    out.parent.mkdir(parents=True, exist_ok=True)
-    inputs = model.get_dummy_inputs()
-    torch.onnx.export(model, inputs, str(out), export_params=True, opset_version=18,
-                      input_names=model.input_names, output_names=model.output_names, dynamo=False)
+    model, input_names, output_names, inputs = onnx_module(policy)
+    buffer = io.BytesIO()
+    torch.onnx.export(model, inputs, buffer, export_params=True, opset_version=18,
+                      input_names=input_names, output_names=output_names, dynamo=False,
+                      dynamic_axes={name: {0: BATCH_AXIS} for name in input_names + output_names})
     sidecar = {
         "method": policy.method,
-        "inputs": {name: list(tensor.shape) for name, tensor in zip(model.input_names, inputs)},
+        "inputs": {name: [BATCH_AXIS, *tensor.shape[1:]] for name, tensor in zip(input_names, inputs)},
+        "outputs": {name: [BATCH_AXIS, j] for name in output_names},
         "observation": f"o_t = [base angular velocity (body) 3, projected gravity 3, q - q_default {j}, "
                        f"joint velocity {j}, previous action {j}]; history = last {policy.frames} o_t, oldest first",
         "action": f"joint targets q* = q_default + {policy.action_scale} * actions, in the robot's joint order"
                   + (" (canonical FL, FR, RL, RR)" if policy.robot_kind == "quadruped" else ""),
+        "action_scale": policy.action_scale,
         "checkpoint": str(policy.checkpoint),
     }
-    atomic_write_text(out.with_suffix(".json"), json.dumps(sidecar, indent=1) + "\n")
+    atomic_write_bytes(out, buffer.getvalue())
+    atomic_write_text(sidecar_path(out), json.dumps(sidecar, indent=1) + "\n")
     return out

@@ -104,3 +104,61 @@ def load_policy(name_or_path: str):
     if "/" in name_or_path or name_or_path.endswith((".pt", ".onnx")):
         raise PolicyError(f"{name_or_path}: no such checkpoint file or run folder")
     raise unknown_name("policy", name_or_path, policy_names())
+
+
+def checkpoint_metadata(path: Path) -> dict:
+    """The scalar fields of a frbench checkpoint (method, env_steps, wall_s, robot_kind, num_actions,
+    action_scale, config_json, ...) read without torch: a ``torch.save`` file is a zip archive whose
+    ``data.pkl`` holds the dict, with tensors as references to other members; those are left unread (None).
+
+    Raises:
+        PolicyError: the file is not such an archive or not a frbench checkpoint.
+    """
+    import pickle
+    import zipfile
+
+    from frbench.policies.checkpoint import CHECKPOINT_FORMAT, resolve_checkpoint_file
+
+    class _Skeleton(pickle.Unpickler):
+        def find_class(self, module: str, name: str):
+            if module == "collections" and name == "OrderedDict":
+                return dict
+            return lambda *args, **kwargs: None  # tensors, storages: not needed to describe a checkpoint
+
+        def persistent_load(self, pid):
+            return None
+
+    file = resolve_checkpoint_file(Path(path))
+    try:
+        with zipfile.ZipFile(file) as archive:
+            member = next(name for name in archive.namelist() if name.endswith("/data.pkl"))
+            data = _Skeleton(archive.open(member)).load()
+    except (OSError, zipfile.BadZipFile, StopIteration, pickle.UnpicklingError, EOFError, AttributeError) as exc:
+        raise PolicyError(f"{file}: unreadable checkpoint ({type(exc).__name__})") from None
+    if not isinstance(data, dict) or data.get("format") != CHECKPOINT_FORMAT:
+        raise PolicyError(f"{file}: not a frbench checkpoint (expected format {CHECKPOINT_FORMAT!r})")
+    return {key: value for key, value in data.items() if not key.endswith("state_dict")}
+
+
+def describe_checkpoint(metadata: dict) -> str:
+    """One line from a checkpoint's own config: method, env steps, training time, what it was trained on."""
+    import json
+
+    config = json.loads(metadata.get("config_json") or "{}")
+    env = config.get("env", {})
+    if env.get("robot"):
+        robots = env["robot"]
+    elif env.get("num_morphologies"):
+        robots = f"{env['num_morphologies']} sampled {metadata.get('robot_kind', 'quadruped')} morphologies"
+    else:
+        robots = metadata.get("robot_kind", "?")
+    parts = [f"{metadata.get('method', '?')}", f"{metadata.get('env_steps', 0) / 1e6:.2f} M env steps"]
+    if metadata.get("wall_s"):
+        parts.append(f"{metadata['wall_s'] / 60:.0f} min training")
+    parts.append(f"trained on {robots} in {env.get('backend', '?')}")
+    weights = env.get("reward", {}).get("weights", {})
+    if weights and "safety_force" not in weights and "body_bias" not in weights:
+        parts.append("without the stability reward terms")
+    if env.get("base_controller"):
+        parts.append(f"residual over {env['base_controller']}")
+    return ", ".join(parts)

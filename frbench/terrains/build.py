@@ -16,8 +16,8 @@ from __future__ import annotations
 import math
 import mujoco
 import numpy as np
-import pybullet
 
+from frbench.backends.bullet import pybullet
 from frbench.terrains.geometry import Terrain
 
 #: MuJoCo sliding, torsional and rolling friction besides the sliding value.
