@@ -60,16 +60,6 @@ def test_ray_executor_writes_the_local_results_episode_by_episode(ray_instance, 
     _same_results(json.loads(out.read_text()), local_results)
 
 
-@pytest.mark.slow
-def test_ray_executor_starts_and_stops_its_own_local_instance(tmp_path, local_results, capsys):
-    if ray.is_initialized():
-        ray.shutdown()
-    out = tmp_path / "ray.json"
-    assert main(["evaluate", *GRID, "--executor", "ray", "--jobs", "2", "--out", str(out)]) == 0
-    assert not ray.is_initialized()  # the instance it started is shut down
-    _same_results(json.loads(out.read_text()), local_results)
-
-
 def _kill_first_cell_worker(killed: list[int], stop: threading.Event) -> None:
     """SIGKILL the first Ray worker seen running a cell; its pid goes to ``killed``."""
     while not stop.is_set() and not killed:
@@ -129,3 +119,13 @@ def test_an_interrupted_ray_run_writes_no_results_and_cancels_its_cells(ray_inst
 def test_executor_names_are_checked(tmp_path, capsys):
     assert main(["evaluate", *GRID, "--executor", "dask", "--out", str(tmp_path / "r.json")]) == 2
     assert "unknown executor 'dask'" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_ray_executor_starts_and_stops_its_own_local_instance(tmp_path, local_results, capsys):
+    if ray.is_initialized():  # the default tests' shared instance (the last test of the module)
+        ray.shutdown()
+    out = tmp_path / "ray.json"
+    assert main(["evaluate", *GRID, "--executor", "ray", "--jobs", "2", "--out", str(out)]) == 0
+    assert not ray.is_initialized()  # the instance it started is shut down
+    _same_results(json.loads(out.read_text()), local_results)
