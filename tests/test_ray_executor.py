@@ -59,6 +59,20 @@ def test_ray_executor_writes_the_local_results_episode_by_episode(ray_instance, 
     assert ray.is_initialized()  # a cluster it connected to is left running
     _same_results(json.loads(out.read_text()), local_results)
 
+    def policy_loads() -> tuple[int, int, int]:  # nested: sent by value (workers cannot import a test module)
+        """(pid, policy loads, cached uses) of the Ray worker that runs this."""
+        from frbench.evaluation import runner
+
+        info = runner._policy.cache_info()
+        return os.getpid(), info.misses, info.hits
+
+    probe = ray.remote(num_cpus=1)(policy_loads)
+    workers = {pid: (loads, uses) for pid, loads, uses in ray.get([probe.remote() for _ in range(40)])}
+    ran_cells = {pid: counts for pid, counts in workers.items() if counts[0]}
+    assert ran_cells and all(loads == 1 for loads, _ in ran_cells.values())  # the policy loaded once per worker
+    assert sum(loads + uses for loads, uses in ran_cells.values()) <= 4
+    assert any(uses >= 1 for _, uses in ran_cells.values())  # ... and reused for the worker's next cell
+
 
 def _kill_first_cell_worker(killed: list[int], stop: threading.Event) -> None:
     """SIGKILL the first Ray worker seen running a cell; its pid goes to ``killed``."""
