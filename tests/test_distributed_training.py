@@ -85,3 +85,15 @@ def test_a_multi_process_run_resumes_only_on_as_many_processes(tmp_path, capsys)
     assert main(["train", "--resume", str(run), "--nproc", "3"]) == 2
     assert capsys.readouterr().err.strip().splitlines() == [
         f"frbench train: error: --resume {run}: the run trained on 2 process(es); resume it with --nproc 2 (got 3)"]
+
+
+@pytest.mark.slow
+def test_a_bad_input_on_2_processes_is_one_line_and_status_2(tmp_path):
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "config.json").write_text("{}")
+    done = subprocess.run([sys.executable, "-m", "frbench", "train", *TINY, "--nproc", "2", "--out", str(out)],
+                          env=_env(), capture_output=True, text=True, timeout=300)
+    assert done.returncode == 2
+    assert done.stderr.strip().splitlines() == [
+        f"frbench train: error: --out {out}: a run is already there; use --resume {out} or another name"]

@@ -71,7 +71,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--checkpoint-every", type=int, default=20, help="iterations between checkpoints")
     p.add_argument("--out", type=Path, default=None, help="run folder (default runs/<method>)")
     p.add_argument("--resume", type=Path, default=None, help="continue the run in this folder")
-    p.add_argument("--nproc", type=int, default=1, help="training processes on this machine (torchrun; each "
+    p.add_argument("--nproc", type=int, default=1, help="training processes on this machine (each "
                    "with --envs environments; docs/scale.md)")
     p.set_defaults(func=run)
 

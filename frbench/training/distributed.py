@@ -1,10 +1,10 @@
 """Training across processes: rsl-rl's multi-process PPO on CPUs (gloo) or GPUs (NCCL).
 
 ``frbench train --nproc N ...`` starts N copies of the same ``frbench train``
-command under ``torchrun --standalone`` (one machine); ``torchrun --nnodes M
---nproc-per-node N ... -m frbench train ...`` runs it on several machines
-(docs/scale.md). Each process (rank) reads ``WORLD_SIZE``, ``RANK`` and
-``LOCAL_RANK`` from torchrun and:
+command on this machine, with the environment torchrun would give them
+(:func:`launch`); ``torchrun --nnodes M --nproc-per-node N ... -m frbench train
+...`` runs it on several machines (docs/scale.md). Each process (rank) reads
+``WORLD_SIZE``, ``RANK`` and ``LOCAL_RANK`` and:
 
 * trains its own ``--envs`` environments (the run trains N·envs in all), drawn
   from its own seed stream (:func:`rank_seed`; rank 0 keeps the run's seed, so
@@ -169,22 +169,56 @@ def without_nproc(argv: list[str]) -> list[str]:
     return out
 
 
-def launch(nproc: int, argv: list[str], resume=None) -> int:
-    """Run ``frbench <argv>`` on ``nproc`` local processes under ``torchrun --standalone``; its exit status.
+def _free_port() -> int:
+    import socket
 
-    ``resume``: the run folder of ``--resume``, whose process count is checked here, before anything starts.
-    Each process gets ``cores // nproc`` MuJoCo threads (at least 1) unless ``FRBENCH_MUJOCO_THREADS`` is set."""
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+def launch(nproc: int, argv: list[str], resume=None) -> int:
+    """Run ``frbench <argv>`` on ``nproc`` processes of this machine (torchrun's environment variables on
+    127.0.0.1); the exit status of the first process that fails, else 0.
+
+    Rank 0 writes to this terminal; the other ranks' output goes to a log that is shown only when one of them
+    fails alone (a bad input makes every rank print the same one-line error: rank 0's is enough). When one
+    rank fails the others are stopped (they would wait for it forever). ``resume``: the run folder of
+    ``--resume``, whose process count is checked before anything starts. Each process gets
+    ``cores // nproc`` MuJoCo threads (at least 1) unless ``FRBENCH_MUJOCO_THREADS`` is set."""
+    import tempfile
+    import time
+
     if nproc < 1:
         raise FrbenchError(f"--nproc {nproc}: expected at least 1 process")
     if resume is not None and (Path(resume) / "config.json").is_file():
         processes = json.loads((Path(resume) / "config.json").read_text()).get("processes", 1)
         check_resume_processes(processes, resume, nproc)
-    env = dict(os.environ)
+    env = dict(os.environ, MASTER_ADDR="127.0.0.1", MASTER_PORT=str(_free_port()), WORLD_SIZE=str(nproc),
+               LOCAL_WORLD_SIZE=str(nproc))
     env.setdefault("OMP_NUM_THREADS", "1")
     env.setdefault("FRBENCH_MUJOCO_THREADS", str(max(1, (os.cpu_count() or 1) // nproc)))
-    command = [sys.executable, "-m", "torch.distributed.run", "--standalone", f"--nproc-per-node={nproc}",
-               "-m", "frbench", *without_nproc(argv)]
-    return subprocess.run(command, env=env, check=False).returncode
+    command = [sys.executable, "-m", "frbench", *without_nproc(argv)]
+    with tempfile.TemporaryFile("w+") as others:
+        procs = [subprocess.Popen(command, env={**env, "RANK": str(r), "LOCAL_RANK": str(r)},
+                                  stdout=None if r == 0 else others, stderr=None if r == 0 else others)
+                 for r in range(nproc)]
+        try:
+            while all(p.poll() is None or p.returncode == 0 for p in procs) and any(p.poll() is None for p in procs):
+                time.sleep(0.2)
+        except KeyboardInterrupt:  # the terminal's Ctrl-C reached every rank as well
+            for p in procs:
+                p.wait()
+            raise
+        failed = [p for p in procs if p.poll() not in (None, 0)]
+        for p in procs:
+            if p.poll() is None:
+                p.terminate()
+            p.wait()
+        if failed and procs[0] not in failed:
+            others.seek(0)
+            sys.stderr.write(others.read()[-4000:])
+    return failed[0].returncode if failed else 0
 
 
 def mean_over_ranks(stats: dict) -> dict:
