@@ -1,7 +1,7 @@
 # frbench: one command sets up and runs the main job (`make demo`), one sets up and
 # runs the tests (`make test`). Both create and reuse a local virtual environment
 # (.venv) with the pinned versions of requirements.lock; torch is pinned to the
-# CPU build 2.13.0.
+# CPU build 2.13.0. The lock includes the optional extras' packages (cma, Ray), so their tests run.
 
 PYTHON ?= python3
 VENV ?= .venv

@@ -37,6 +37,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--episodes", type=int, default=d.episodes, help="episodes per cell (default 8)")
     p.add_argument("--noise", action="store_true", help="add sensor noise to the observations")
     p.add_argument("--jobs", type=int, default=0, help="worker processes (default: one per core)")
+    p.add_argument("--executor", default=d.executor, help="local (a process pool, default) or ray (Ray tasks; "
+                   "docs/scale.md)")
+    p.add_argument("--address", default=None, help="--executor ray: the Ray cluster (default $RAY_ADDRESS, else a "
+                   "local instance of --jobs CPUs)")
     p.add_argument("--out", type=Path, default=None, help="results JSON (default results/<policy>.json)")
     p.set_defaults(func=run)
 
@@ -57,6 +61,7 @@ def run(args) -> int:
     request = EvaluationRequest(
         policy=args.policy, robots=args.robots, backends=args.backends, terrains=args.terrains,
         levels=args.levels, seeds=args.seeds, episodes=args.episodes, noise=args.noise, jobs=args.jobs,
+        executor=args.executor, address=args.address,
     )
     out = args.out or Path("results") / f"{Path(args.policy).stem or 'policy'}.json"
     check_output_path(out)

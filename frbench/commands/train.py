@@ -39,6 +39,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--checkpoint-every", type=int, default=20, help="iterations between checkpoints")
     p.add_argument("--out", type=Path, default=None, help="run folder (default runs/<method>)")
     p.add_argument("--resume", type=Path, default=None, help="continue the run in this folder")
+    p.add_argument("--nproc", type=int, default=1, help="training processes on this machine (each "
+                   "with --envs environments; docs/scale.md)")
     p.set_defaults(func=run)
 
 
@@ -163,6 +165,10 @@ def run(args) -> int:
     from frbench.training.methods import METHODS
     from frbench.training.run import ADAPTATION_METHOD, TrainingRun
 
+    if args.nproc != 1:
+        from frbench.training.distributed import launch
+
+        return launch(args.nproc, sys.argv[1:], resume=args.resume)
     command = "frbench " + " ".join(shlex.quote(a) for a in sys.argv[1:])
     weights = reward_weight_changes(args.motion_penalties, args.reward_weight)
     if args.backend is not None and args.backend not in training_backend_names():
@@ -185,5 +191,6 @@ def run(args) -> int:
         run_ = TrainingRun(out, args.method, env_cfg, int(args.steps), args.checkpoint_every, command,
                            teacher=args.teacher, train_overrides=overrides)
     run_.train()
-    print(f"trained {run_.env_steps / 1e6:.2f}M env steps in {run_.wall / 60:.1f} min; policy at {run_.out / 'policy.pt'}")
+    if run_.ranks.is_main:
+        print(f"trained {run_.env_steps / 1e6:.2f}M env steps in {run_.wall / 60:.1f} min; policy at {run_.out / 'policy.pt'}")
     return 0

@@ -1,8 +1,10 @@
 """The evaluation grid: validate the request, run its cells in parallel processes, build the results.
 
-Cells run in a process pool (one MuJoCo thread per worker, so two workers use
-two cores); a progress bar counts cells. Results are deterministic: the same
-policy, grid and protocol give the same numbers whatever the worker count.
+Cells run in a local process pool (``executor="local"``: one MuJoCo thread per
+worker, so two workers use two cores) or as Ray tasks on this machine or a
+cluster (``executor="ray"``, `frbench.evaluation.ray_executor`); a progress bar
+counts cells. Results are deterministic: the same policy, grid and protocol
+give the same numbers whatever the executor and worker count.
 """
 
 from __future__ import annotations
@@ -19,6 +21,10 @@ from frbench.interrupts import children_ignore_sigint, terminate_pool
 from frbench.tasks.protocol import PROTOCOL_VERSION, RESULTS_SCHEMA_VERSION
 
 
+#: Where the cells run: a local process pool, or Ray tasks (`frbench.evaluation.ray_executor`).
+EXECUTORS = ("local", "ray")
+
+
 @dataclass
 class EvaluationRequest:
     """What ``frbench evaluate`` was asked to run (the resolved config of the results)."""
@@ -32,6 +38,8 @@ class EvaluationRequest:
     episodes: int = 8
     noise: bool = False
     jobs: int = 0
+    executor: str = "local"
+    address: str | None = None
 
     def cells(self) -> list[Cell]:
         """Every cell of the grid, in a fixed order."""
@@ -48,6 +56,9 @@ def validate(request: EvaluationRequest):
     from frbench.policies.registry import load_policy
     from frbench.robots import get_robot
     from frbench.terrains import FAMILIES
+
+    if request.executor not in EXECUTORS:
+        raise unknown_name("executor", request.executor, EXECUTORS)
 
     for backend in request.backends:
         if backend not in BACKENDS:
@@ -70,6 +81,10 @@ def validate(request: EvaluationRequest):
     return policy
 
 
+#: Request fields that say how the grid ran, not what it measured: left out of the results' config.
+RUN_ONLY_FIELDS = ("jobs", "executor", "address")
+
+
 def _worker_init() -> None:
     os.environ["FRBENCH_MUJOCO_THREADS"] = "1"
     try:
@@ -85,7 +100,11 @@ def run_grid(request: EvaluationRequest, progress=None) -> list[dict]:
     cells = request.cells()
     jobs = request.jobs or min(len(cells), os.cpu_count() or 1)
     records: list[dict] = []
-    if jobs <= 1:
+    if request.executor == "ray":
+        from frbench.evaluation.ray_executor import run_cells_on_ray
+
+        records = run_cells_on_ray(cells, request.policy, request.noise, progress, request.address, request.jobs)
+    elif jobs <= 1:
         for cell in cells:
             records += run_cell(cell, request.policy, request.noise)
             if progress:
@@ -124,7 +143,7 @@ def build_results(request: EvaluationRequest, policy, episodes: list[dict]) -> d
     checkpoint = getattr(policy, "checkpoint", None)
     cells = aggregate_cells(episodes)
     summary = summarize(cells)
-    config = {k: v for k, v in request.__dict__.items() if k != "jobs"}
+    config = {k: v for k, v in request.__dict__.items() if k not in RUN_ONLY_FIELDS}
     return {
         "schema_version": RESULTS_SCHEMA_VERSION,
         "protocol_version": PROTOCOL_VERSION,

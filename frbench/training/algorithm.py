@@ -29,6 +29,7 @@ from rsl_rl.algorithms import PPO
 from rsl_rl.env import VecEnv
 from rsl_rl.utils import resolve_class, resolve_obs_groups, resolve_optimizer
 
+from frbench.training.distributed import all_reduce_gradients
 from frbench.training.models import EstimatorActor, RMAActor
 
 #: Estimator head → observation group holding its target (the environment contract).
@@ -125,6 +126,7 @@ class EstimatorPPO(PPO):
                 total, parts = self.estimator.loss(out, batch_targets, next_o[idx], valid[idx])
                 self.estimator_optimizer.zero_grad()
                 total.backward()
+                all_reduce_gradients(self.estimator.parameters())  # a multi-process run: the mean over ranks
                 nn.utils.clip_grad_norm_(self.estimator.parameters(), self.estimator_max_grad_norm)
                 self.estimator_optimizer.step()
                 logged = {"estimator": total.detach(), **{f"estimator_{k}": v for k, v in parts.items()}}

@@ -128,13 +128,20 @@ class TrainingRun:
         from frbench.training.env import RecoveryTrainingEnv
         from frbench.training.methods import make_train_cfg
 
+        from frbench.training import distributed
+
         torch.set_num_threads(1)
+        distributed.init_process_group()
+        self.ranks = ranks = distributed.ranks()
+        if ranks.world_size > 1 and method == ADAPTATION_METHOD:
+            raise FrbenchError(f"--method {ADAPTATION_METHOD} trains on one process (without --nproc)")
         self.out = Path(out)
         if resume:
             config_path = self.out / CONFIG_FILE
             if not config_path.is_file():
                 raise FrbenchError(f"--resume {self.out}: no {CONFIG_FILE} there; is it a training run folder?")
             config = json.loads(config_path.read_text())
+            distributed.check_resume_processes(config.get("processes", 1), self.out)
             method, env_cfg = config["method"], env_cfg_from_dict(config["env"], str(config_path))
             total_steps = total_steps or config["total_steps"]
             train_cfg = config["train_cfg"]
@@ -153,22 +160,28 @@ class TrainingRun:
                       "total_steps": total_steps, "command": command}
             if teacher is not None:
                 config["teacher"] = str(teacher)
-            self.out.mkdir(parents=True, exist_ok=True)
-            atomic_write_text(self.out / CONFIG_FILE, json.dumps(config, indent=1) + "\n")
+            if ranks.world_size > 1:
+                config["processes"] = ranks.world_size
+            distributed.barrier()  # every rank has checked that the folder is free before rank 0 writes
+            if ranks.is_main:
+                self.out.mkdir(parents=True, exist_ok=True)
+                atomic_write_text(self.out / CONFIG_FILE, json.dumps(config, indent=1) + "\n")
         self.config, self.method, self.total_steps = config, method, int(total_steps)
         self.checkpoint_every = checkpoint_every
-        torch.manual_seed(env_cfg.seed)
-        self.env = RecoveryTrainingEnv(env_cfg)
+        seed = distributed.rank_seed(env_cfg.seed, ranks.rank)  # each rank its own environments and draws
+        torch.manual_seed(seed)
+        self.env = RecoveryTrainingEnv(env_cfg if seed == env_cfg.seed else dataclasses.replace(env_cfg, seed=seed))
         sized = estimator_sized_for(train_cfg, self.env.env_masses.shape[1], len(self.env.spec.contact_groups),
                                     self.env.env_masses[0])
         if sized != train_cfg:  # e.g. the G1: 3 mass groups and 10 contact groups instead of 4 and 13
             train_cfg = config["train_cfg"] = sized
-            atomic_write_text(self.out / CONFIG_FILE, json.dumps(config, indent=1) + "\n")
-        from rsl_rl.runners import OnPolicyRunner
-
-        self.runner = OnPolicyRunner(self.env, json.loads(json.dumps(train_cfg)), log_dir=str(self.out), device="cpu")
-        # control steps per iteration: each decision holds its action for `action_hold` steps
-        self.steps_per_iteration = self.env.num_envs * train_cfg["num_steps_per_env"] * self.env.cfg_obj.action_hold
+            if ranks.is_main:
+                atomic_write_text(self.out / CONFIG_FILE, json.dumps(config, indent=1) + "\n")
+        self.runner = distributed.runner_class()(self.env, json.loads(json.dumps(train_cfg)), log_dir=str(self.out),
+                                                 device=distributed.training_device())
+        # control steps per iteration, summed over the ranks: each decision holds its action for `action_hold` steps
+        self.steps_per_iteration = (self.env.num_envs * train_cfg["num_steps_per_env"] * self.env.cfg_obj.action_hold
+                                    * ranks.world_size)
         self.iteration, self.env_steps, self.wall = 0, 0, 0.0
         self.progress: list[dict] = []
         if resume and (self.out / RUNNER_FILE).is_file():
@@ -204,7 +217,8 @@ class TrainingRun:
         if morphology:
             stage["morphology_ranges"] = {k: list(map(float, v)) for k, v in morphology.items()}
         config.setdefault("stages", []).append(stage)
-        atomic_write_text(self.out / CONFIG_FILE, json.dumps(config, indent=1) + "\n")
+        if self.ranks.is_main:
+            atomic_write_text(self.out / CONFIG_FILE, json.dumps(config, indent=1) + "\n")
         return env_cfg
 
     def _load_state(self) -> None:
@@ -213,21 +227,27 @@ class TrainingRun:
         self.runner.load(str(self.out / RUNNER_FILE))
         state = torch.load(self.out / STATE_FILE, weights_only=False)
         self.iteration, self.env_steps, self.wall = state["iteration"], state["env_steps"], state["wall"]
-        self.env.curriculum.load_state_dict(state["curriculum"])
+        own = state["ranks"][self.ranks.rank] if "ranks" in state else state  # a multi-process run's per-rank state
+        self.env.curriculum.load_state_dict(own["curriculum"])
         self.env.env_steps = self.env_steps
-        self.env.rng.bit_generator.state = state["rng"]
+        self.env.rng.bit_generator.state = own["rng"]
         self.progress = json.loads((self.out / PROGRESS_FILE).read_text()) if (self.out / PROGRESS_FILE).is_file() else []
         self.runner.current_learning_iteration = self.iteration
 
     def save(self) -> None:
-        """Write runner, state, policy and progress (each atomically)."""
+        """Write runner, state, policy and progress (each atomically; rank 0 only, with every rank's state)."""
+        from frbench.training import distributed
 
+        rank_states = distributed.gather_objects({"curriculum": self.env.curriculum.state_dict(),
+                                                  "rng": self.env.rng.bit_generator.state})
+        if not self.ranks.is_main:
+            return
         self.runner.current_learning_iteration = self.iteration
         tmp = self.out / f".{RUNNER_FILE}.tmp"
         self.runner.save(str(tmp))
         os.replace(tmp, self.out / RUNNER_FILE)
         _atomic_torch_save({"iteration": self.iteration, "env_steps": self.env_steps, "wall": self.wall,
-                            "curriculum": self.env.curriculum.state_dict(), "rng": self.env.rng.bit_generator.state},
+                            **rank_states[0], **({"ranks": rank_states} if len(rank_states) > 1 else {})},
                            self.out / STATE_FILE)
         actor = self.runner.alg.get_policy()
         _atomic_torch_save(policy_checkpoint(self.method, self.config, actor, self.iteration, self.env_steps, self.wall,
@@ -256,8 +276,11 @@ class TrainingRun:
         """Train until ``total_steps`` env steps, checkpointing every ``checkpoint_every`` iterations."""
         from tqdm import tqdm
 
+        from frbench.training import distributed
+
         total_iterations = math.ceil(self.total_steps / self.steps_per_iteration)
-        bar = tqdm(total=total_iterations, initial=self.iteration, unit="it", disable=not progress_bar, dynamic_ncols=True)
+        bar = tqdm(total=total_iterations, initial=self.iteration, unit="it", disable=not (progress_bar and self.ranks.is_main),
+                   dynamic_ncols=True)
         while self.iteration < total_iterations:
             chunk = min(self.checkpoint_every, total_iterations - self.iteration)
             start = time.time()
@@ -266,13 +289,17 @@ class TrainingRun:
             self.iteration += chunk
             self.env_steps = self.iteration * self.steps_per_iteration
             self.wall += time.time() - start
+            stats = distributed.mean_over_ranks(self.env.last_episode_stats)
+            if self.ranks.world_size > 1:
+                self.env.env_steps = self.env_steps  # schedules (demo starts, assist force) follow the run's steps
             self.progress.append({"iteration": self.iteration, "env_steps": self.env_steps, "wall_s": round(self.wall, 1),
-                                  **self.env.last_episode_stats})
+                                  **stats})
             self.save()
             bar.update(chunk)
-            bar.set_postfix(steps=f"{self.env_steps / 1e6:.2f}M", success=self.env.last_episode_stats.get("success_flat"))
+            bar.set_postfix(steps=f"{self.env_steps / 1e6:.2f}M", success=stats.get("success_flat"))
         bar.close()
-        draw_curve(self.progress, self.out / "curve.png", title=f"{self.method} ({self.out.name})")
+        if self.ranks.is_main:
+            draw_curve(self.progress, self.out / "curve.png", title=f"{self.method} ({self.out.name})")
 
 
 def zero_output_layer(actor) -> None:
