@@ -50,6 +50,22 @@ def link_poses(tree: UrdfTree, q: dict[str, float]) -> dict[str, np.ndarray]:
     return poses
 
 
+def chain_poses(tree: UrdfTree, link: str, q: dict[str, float]) -> dict[str, np.ndarray]:
+    """World transforms (4, 4) of ``link`` and its ancestors only (root at the identity): cheap FK for one leg."""
+    path = [link, *tree.ancestors(link)][::-1]
+    poses = {path[0]: np.eye(4)}
+    for parent, child in zip(path, path[1:]):
+        joint = tree.parent_joint(child)
+        motion = np.eye(4)
+        angle = q.get(joint.name, 0.0)
+        if joint.type in ("revolute", "continuous"):
+            motion[:3, :3] = _axis_rotation(joint.axis, angle)
+        elif joint.type == "prismatic":
+            motion[:3, 3] = joint.axis / np.linalg.norm(joint.axis) * angle
+        poses[child] = poses[parent] @ joint.origin @ motion
+    return poses
+
+
 def lowest_point(tree: UrdfTree, poses: dict[str, np.ndarray], links) -> float:
     """Lowest z [m] of the links' collision geometry (sphere bottoms, box corners, frame origins)."""
     lowest = np.inf

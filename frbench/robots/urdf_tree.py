@@ -331,6 +331,27 @@ def merge_fixed_joints(tree: UrdfTree, keep_links: set[str]) -> UrdfTree:
         del tree.links[child.name]
 
 
+def rotate_root(tree: UrdfTree, rotation) -> UrdfTree:
+    """A copy of ``tree`` whose root link frame is turned by ``rotation`` (3, 3): new = R · old.
+
+    The root's inertial, collisions and child joints are re-expressed, so the
+    robot is unchanged but its root frame axes are R's rows (e.g. a y-up file made z-up).
+    """
+    rot = np.asarray(rotation, dtype=float).reshape(3, 3)
+    if np.allclose(rot, np.eye(3)):
+        return tree
+    tree = tree.copy()
+    turn = np.eye(4)
+    turn[:3, :3] = rot
+    root = tree.links[tree.root]
+    root.com = rot @ root.com
+    root.inertia = rot @ root.inertia @ rot.T
+    root.collisions = [dataclasses.replace(c, origin=turn @ c.origin) for c in root.collisions]
+    for joint in tree.child_joints(root.name):
+        joint.origin = turn @ joint.origin
+    return tree
+
+
 # --------------------------------------------------------------------------- writing
 def _fmt(values) -> str:
     return " ".join(f"{float(v):.12g}" for v in np.atleast_1d(values))
