@@ -57,7 +57,7 @@ def _show(value) -> str:
         text = repr(value)
     elif isinstance(value, dict):
         text = "{" + ", ".join(f"{k} = {_show(v)}" for k, v in value.items()) + "}"
-    elif isinstance(value, list):
+    elif isinstance(value, (list, tuple)):
         text = "[" + ", ".join(_show(v) for v in value) + "]"
     else:
         text = str(value).lower() if isinstance(value, bool) else str(value)
