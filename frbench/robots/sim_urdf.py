@@ -37,7 +37,7 @@ from frbench.robots.spec import RobotSpec
 from frbench.robots.urdf_tree import Collision, UrdfTree, merge_fixed_joints, parse_urdf, rotate_root, write_urdf
 
 #: Bump when the derivation changes (invalidates caches, changes checksums).
-SIM_URDF_VERSION = 1
+SIM_URDF_VERSION = 2
 #: Principal moments below this fraction of a link's largest count as zero (round-off).
 ROUND_OFF = 1e-9
 #: A link whose smallest moment is zero (point mass, rod) gets this fraction of its largest on the diagonal.
@@ -46,6 +46,10 @@ MIN_MOMENT_FRACTION = 1e-3
 POINT_MASS_RADIUS = 0.01
 #: A link whose largest moment is below this [kg·m²] and breaks the triangle inequality is balanced, not refused.
 SMALL_LINK_MOMENT = 1e-4
+#: A triangle-inequality violation up to this fraction of the largest moment is repaired, not refused.
+TRIANGLE_SLACK = 0.1
+#: [rad/s] velocity limit written for an actuated joint whose file gives none (no frbench code reads it).
+DEFAULT_VELOCITY_LIMIT = 100.0
 #: The cache keeps at most this many files per folder; the least recently used go first.
 CACHE_MAX_FILES = 200
 _MUJOCO_GEOM = {"box": "mjGEOM_BOX", "sphere": "mjGEOM_SPHERE", "cylinder": "mjGEOM_CYLINDER"}
@@ -111,6 +115,12 @@ def _check_inertial(tree: UrdfTree) -> None:
             link.inertia = link.inertia + np.eye(3) * MIN_MOMENT_FRACTION * scale
             eig = np.linalg.eigvalsh(0.5 * (link.inertia + link.inertia.T))
         if eig[0] + eig[1] < eig[2] * (1 - 1e-6):
+            if eig[0] + eig[1] >= eig[2] * (1 - TRIANGLE_SLACK):
+                # a small violation (a rounded file): raise the smallest moment to meet the inequality
+                vals, vecs = np.linalg.eigh(0.5 * (link.inertia + link.inertia.T))
+                vals[0] = vals[2] - vals[1] + 1e-3 * vals[2]
+                link.inertia = vecs @ np.diag(vals) @ vecs.T
+                continue
             if eig[2] > SMALL_LINK_MOMENT:
                 raise RobotFileError(
                     f"{label}: link {link.name!r}{merged} inertia violates the triangle inequality "
@@ -126,7 +136,14 @@ def _apply_joint_limits(tree: UrdfTree, spec: RobotSpec) -> None:
     for name in spec.joint_names:
         if name not in tree.joints:
             raise RobotFileError(f"{label}: joint {name!r} of robot {spec.name!r} is not in the file")
+    actuated = set(spec.joint_names)  # their limits and effort come from the spec (checked when it was built)
     for joint in tree.moving_joints():
+        if joint.name in actuated:
+            if joint.type == "continuous":
+                joint.type = "revolute"
+            if joint.velocity is None:  # urdfdom (Pinocchio) needs one; frbench's PD does not read it
+                joint.velocity = DEFAULT_VELOCITY_LIMIT
+            continue
         if joint.name in overrides:
             joint.lower, joint.upper = overrides[joint.name]
             if joint.type == "continuous":
@@ -421,7 +438,10 @@ def self_collision_exclusions(spec: RobotSpec) -> tuple[tuple[str, str], ...]:
     mj.compiler.fusestatic = False
     mj.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
     mj.worldbody.first_body().add_freejoint()
-    model = mj.compile()
+    try:
+        model = mj.compile()
+    except ValueError as exc:
+        raise RobotFileError(f"{spec.urdf_path}: MuJoCo cannot compile its simulation URDF ({str(exc).splitlines()[0]})") from None
     data = mujoco.MjData(model)
     pairs = set()
     for pose in (spec.default_pose, np.zeros(spec.n_joints)):
