@@ -155,3 +155,25 @@ def stand_test(spec: RobotSpec, backend_name: str, seconds: float = STAND_SECOND
         "force_z": force_z,
         "weight": weight,
     }
+
+
+def checks_for_evaluation(names) -> dict[str, dict]:
+    """The check of every robot in ``names`` that is not built in (given by path, added, or a plugin).
+
+    Returns spec name → {"ok", "problems", "physics_dt", "nominal_height"}; `frbench evaluate` prints
+    the failures on stderr and records these in the results' ``robots`` table.
+    """
+    from frbench.robots import get_robot
+    from frbench.robots.builtin import BUILTIN_ROBOTS
+
+    out = {}
+    for name in names:
+        if name in BUILTIN_ROBOTS:
+            continue
+        spec = get_robot(name)
+        report = check_robot(spec)
+        out[spec.name] = {
+            "ok": report.ok, "problems": report.problems, "physics_dt": spec.physics_dt,
+            "nominal_height": spec.nominal_height,
+        }
+    return out

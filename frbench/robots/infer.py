@@ -3,8 +3,9 @@
 Legs. Every leaf of the kinematic tree ends a chain of moving joints from the
 root; chains that share their last moving joint are one limb (a foot with
 sensor frames is one leg). A limb is a *leg* when it has at least three moving
-joints and its leaf hangs, at the zero pose, more than half as far below the
-root as the lowest leaf (when no limb hangs below the root at the zero pose,
+joints, starts with a joint no other limb shares (arms and fingers share a
+waist or shoulder joint), and its leaf hangs, at the zero pose, more than half
+as far below the root as the lowest such leaf (when no limb hangs below the root at the zero pose,
 every such limb is a leg). Four legs make a quadruped (legs FL, FR, RL, RR from
 where their hips sit; the last three joints are hip, thigh, calf), two a
 humanoid (left, right; the other limbs, branching from the torso, are arms and
@@ -113,6 +114,16 @@ def upright_rotation(tree: UrdfTree) -> np.ndarray:
     up = np.zeros(3)
     up[axis] = -np.sign(mean[axis])
     others = [k for k in range(3) if k != axis]
+    drops = -(feet @ up)
+    lowest = [i for i in range(len(limbs)) if drops[i] > LEG_DROP_FRACTION * drops.max()]
+    if len(lowest) == 2:  # a biped: its feet spread sideways; left is where the leg named left is
+        side_axis = max(others, key=lambda k: abs(feet[lowest[0], k] - feet[lowest[1], k]))
+        left = np.zeros(3)
+        left[side_axis] = 1.0
+        named_left = [i for i in lowest if re.search(r"(^|[^a-z])(left|l)([^a-z]|$)|^l", " ".join([limbs[i][0], *limbs[i][1]]).lower())]
+        if named_left and feet[named_left[0], side_axis] < feet[[i for i in lowest if i not in named_left] or lowest, side_axis].mean():
+            left = -left
+        return np.array([np.cross(left, up), left, up])
     forward_axis = max(others, key=lambda k: np.ptp(feet[:, k]))
     forward = np.zeros(3)
     forward[forward_axis] = 1.0
@@ -125,6 +136,8 @@ def upright_rotation(tree: UrdfTree) -> np.ndarray:
 def leg_candidates(tree: UrdfTree) -> list[tuple[str, list[str]]]:
     """(foot link, joints) of every limb that is a leg (module docstring)."""
     limbs = [limb for limb in _limbs(tree) if len(limb[1]) >= 3]
+    first = [joints[0] for _, joints, _ in limbs]
+    limbs = [limb for limb in limbs if first.count(limb[1][0]) == 1]  # arms and fingers share a waist or shoulder joint
     if not limbs:
         return []
     lowest = max(drop for _, _, drop in limbs)

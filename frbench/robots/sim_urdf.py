@@ -50,6 +50,8 @@ SMALL_LINK_MOMENT = 1e-4
 TRIANGLE_SLACK = 0.1
 #: [rad/s] velocity limit written for an actuated joint whose file gives none (no frbench code reads it).
 DEFAULT_VELOCITY_LIMIT = 100.0
+#: [kg] mass given to a massless foot link (kept apart for its contacts).
+MASSLESS_FOOT_MASS = 1e-6
 #: The cache keeps at most this many files per folder; the least recently used go first.
 CACHE_MAX_FILES = 200
 _MUJOCO_GEOM = {"box": "mjGEOM_BOX", "sphere": "mjGEOM_SPHERE", "cylinder": "mjGEOM_CYLINDER"}
@@ -90,10 +92,14 @@ class SimRobotFile:
         return float(sum(m for _, m in self.masses))
 
 
-def _check_inertial(tree: UrdfTree) -> None:
+def _check_inertial(tree: UrdfTree, feet=()) -> None:
     label = str(tree.path)
     for link in tree.links.values():
         merged = f" (with merged links {', '.join(link.merged)})" if link.merged else ""
+        if link.name in feet and link.mass == 0 and not tree.child_joints(link.name):
+            # a massless foot frame kept as a link for its contacts: the smallest mass both simulators accept
+            link.mass, link.has_inertial = MASSLESS_FOOT_MASS, True
+            link.inertia = np.eye(3) * 0.4 * link.mass * POINT_MASS_RADIUS**2
         if link.mass <= 0 or not np.isfinite(link.mass):
             raise RobotFileError(
                 f"{label}: link {link.name!r}{merged} has mass {link.mass:g} kg; every simulated link needs a positive mass"
@@ -351,7 +357,7 @@ def build_sim_tree(spec: RobotSpec) -> UrdfTree:
     if spec.root_rotation:
         tree = rotate_root(tree, spec.root_rotation)
     tree = merge_fixed_joints(tree, keep_links=set(spec.foot_links))
-    _check_inertial(tree)
+    _check_inertial(tree, set(spec.foot_links))
     _fit_meshes(tree, spec)
     if spec.trim_shins:
         _trim_shins(tree, spec.foot_links)
