@@ -17,7 +17,8 @@ over their limits for the pose that puts the foot under the hip at
 `QUADRUPED_REACH` (quadruped) or `HUMANOID_REACH` (humanoid, foot kept flat) of
 the leg's reach, preferring the knee direction with more room inside the
 limits; other joints stay at 0 (clipped into their limits). A continuous joint
-gets limits of ±π unless the sidecar's ``joint_limits`` names it. A file drawn
+gets limits of ±π unless the sidecar's ``joint_limits`` names it, and so does a
+joint whose file limits span more than a turn (placeholders such as ±10 rad). A file drawn
 y-up is turned upright first (`upright_rotation`, recorded in the spec).
 
 Gains and physics step: :mod:`frbench.robots.gains`. Nominal height: measured
@@ -185,6 +186,8 @@ def _limits(tree: UrdfTree, side: Sidecar, joint: str, label: str) -> tuple[floa
             f"{label}: joint {joint!r} has no usable limits (lower={j.lower}, upper={j.upper}); "
             f"expected <limit lower=... upper=...> with lower < upper, or joint_limits.{joint} in {side.label}"
         )
+    if j.upper - j.lower > 2 * np.pi + 1e-6:  # more than a turn: a placeholder (Solo12's ±10 rad), not a limit
+        return (max(float(j.lower), -CONTINUOUS_LIMIT), min(float(j.upper), CONTINUOUS_LIMIT))
     return float(j.lower), float(j.upper)
 
 
@@ -373,7 +376,7 @@ def provisional_spec(urdf: str | Path, sidecar: str | Path | None = None, name: 
         )
     else:
         mass, contact, knee = _humanoid_groups(merged, legs, feet)
-    overrides = tuple((j, lo, hi) for j, (lo, hi) in limits.items() if j in side.joint_limits or tree.joints[j].type == "continuous")
+    overrides = tuple((j, lo, hi) for j, (lo, hi) in limits.items() if (lo, hi) != (tree.joints[j].lower, tree.joints[j].upper))
     ordered_pose = [pose[j] for j in joint_names]
     spec = spec_from_urdf(
         name=name or side.name or safe_name(urdf.stem),

@@ -40,6 +40,8 @@ from frbench.robots.urdf_tree import Collision, UrdfTree, merge_fixed_joints, pa
 SIM_URDF_VERSION = 2
 #: Principal moments below this fraction of a link's largest count as zero (round-off).
 ROUND_OFF = 1e-9
+#: [kg·m²] moments below this count as zero whatever the link (a 1 g, 1 mm sphere has 4e-10).
+NEGLIGIBLE_MOMENT = 1e-12
 #: A link whose smallest moment is zero (point mass, rod) gets this fraction of its largest on the diagonal.
 MIN_MOMENT_FRACTION = 1e-3
 #: Radius [m] of the sphere whose inertia a point-mass link (all moments zero) gets.
@@ -107,7 +109,7 @@ def _check_inertial(tree: UrdfTree, feet=()) -> None:
         eig = np.linalg.eigvalsh(0.5 * (link.inertia + link.inertia.T))
         scale = max(float(np.max(np.abs(eig))), 1e-12)
         # round-off: moments within ROUND_OFF of the largest count as zero (a point-mass foot gives -2e-22)
-        eig = np.where(np.abs(eig) <= ROUND_OFF * scale, 0.0, eig)
+        eig = np.where((np.abs(eig) <= ROUND_OFF * scale) | (np.abs(eig) < NEGLIGIBLE_MOMENT), 0.0, eig)
         if eig[-1] == 0:  # a point mass: the inertia of a 1 cm sphere of its mass
             link.inertia = np.eye(3) * 0.4 * link.mass * POINT_MASS_RADIUS**2
             continue
@@ -370,6 +372,9 @@ def build_sim_tree(spec: RobotSpec) -> UrdfTree:
                     f"which is not a simulated link (links: {', '.join(tree.links)})"
                 )
     tree.name = spec.name
+    if next(iter(tree.links)) != tree.root:  # the backends read the first link as the root
+        root = tree.root
+        tree.links = {root: tree.links[root], **{k: v for k, v in tree.links.items() if k != root}}
     return tree
 
 
