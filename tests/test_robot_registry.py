@@ -106,3 +106,14 @@ def test_sim_urdf_cache_stays_bounded(tmp_path):
         (tmp_path / f"f{i}.urdf").write_text("x")
     prune_cache(tmp_path, keep=5)
     assert len(list(tmp_path.iterdir())) == 5
+
+
+def test_evaluation_records_the_check_of_a_robot_given_by_path(tmp_path, quadruped_urdf_text):
+    from frbench.robots.check import checks_for_evaluation
+
+    path = _urdf(tmp_path, quadruped_urdf_text, "limp")
+    (tmp_path / "limp.frbench.toml").write_text("kp = 2.0\nkd = 0.1\nnominal_height = 0.3\n")
+    checks = checks_for_evaluation(["go2", str(path)])
+    assert set(checks) == {"limp"}  # built-in robots are not re-checked
+    assert checks["limp"]["ok"] is False and checks["limp"]["physics_dt"] == 0.005
+    assert any("does not stand" in problem for problem in checks["limp"]["problems"])

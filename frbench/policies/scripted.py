@@ -74,6 +74,10 @@ BELLY_WAIT = 15
 #: Margin [rad] kept from the joint limits; the folded knee stays this much further inside.
 LIMIT_MARGIN = 0.05
 FOLD_MARGIN = 0.1
+#: Deepest knee fold [rad] when the limits allow more (limits of ±π from a file without real ones).
+MAX_FOLD = 2.7
+#: The straightened knee stays this bent [rad] when its limits would let it bend backwards.
+STRAIGHT_KNEE = 0.1
 #: Largest hip abduction used [rad] (also capped by the joint limits).
 MAX_ABDUCTION = 1.0
 #: Belly tuck: hips splayed outwards by this fraction of the abduction range.
@@ -149,7 +153,7 @@ class ScriptedPolicy:
         self.abduct_in = np.minimum(np.where(self.left, -hip_lo, hip_hi), MAX_ABDUCTION)
 
         fold = self.default.copy()
-        fold[self.calf] = self.lo[self.calf] + FOLD_MARGIN  # knees folded
+        fold[self.calf] = np.maximum(self.lo[self.calf] + FOLD_MARGIN, -MAX_FOLD)  # knees folded
         fold[self.thigh] = -fold[self.calf] / 2.0  # feet (about) under the hips
         fold[self.hip] = 0.0
         self.fold = self._clip(fold)
@@ -159,7 +163,7 @@ class ScriptedPolicy:
         self.belly = self._clip(belly)
 
         # A straightened leg pointing out of the back: thigh ~ pi - calf / 2, as far as the limit allows.
-        self.push_calf = self.hi[self.calf]
+        self.push_calf = np.minimum(self.hi[self.calf], -STRAIGHT_KNEE)  # the straightest knee, never bent backwards
         self.push_thigh = np.minimum(self.hi[self.thigh], np.pi - self.push_calf / 2.0)
 
     def topple_pose(self, nose_down: bool) -> np.ndarray:
