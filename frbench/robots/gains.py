@@ -24,9 +24,13 @@ standing pose with the feet on flat ground):
    (the diagonal of the joint-space mass matrix, ``crba``) integrated with a
    semi-implicit Euler step ``dt`` is stable while ``a = Kd dt / I < 2`` and
    ``b + 2a < 4`` with ``b = Kp dt² / I``. ``Kd = 2 ZETA sqrt(Kp I)`` (damping
-   ratio ``ZETA``) capped at ``a <= A_MAX``; the step is the largest of
-   `~frbench.robots.sidecar.PHYSICS_STEPS` with ``b <= B_MAX`` on every joint
-   (half the stability bound), the same in both simulators. When not even
+   ratio ``ZETA``). Joints couple (a light calf on a light thigh swinging in
+   the air meets far less than its diagonal inertia), so ``b`` and ``a`` are
+   taken for the stiffest *mode* of the free-floating robot: the largest
+   eigenvalues of ``M⁻¹ Kp`` and ``M⁻¹ Kd`` times ``dt²`` and ``dt``. Kd is
+   scaled down until ``a <= A_MAX``; the step is the largest of
+   `~frbench.robots.sidecar.PHYSICS_STEPS` with ``b <= B_MAX`` (a quarter of
+   the stability bound), the same in both simulators. When not even
    1 ms suffices the robot is refused, naming ``kp``, ``kd`` and ``physics_dt``.
 
 The standing height is not derived here: it is measured by settling the robot
@@ -62,7 +66,8 @@ class Derivation:
         static_torque: tau holding the standing pose [N·m].
         inertia: joint-space inertia (mass-matrix diagonal) [kg·m²].
         foot_force_z: vertical force per foot [N].
-        stability_b, stability_a: Kp dt²/I and Kd dt/I at ``physics_dt``.
+        stability_b, stability_a: Kp dt²/I and Kd dt/I per joint at ``physics_dt``.
+        mode_b, mode_a: the same for the stiffest mode of the whole robot (max eigenvalue of M⁻¹ Kp, M⁻¹ Kd).
     """
 
     kp: tuple[float, ...]
@@ -73,6 +78,8 @@ class Derivation:
     foot_force_z: tuple[float, ...]
     stability_b: tuple[float, ...]
     stability_a: tuple[float, ...]
+    mode_b: float = 0.0
+    mode_a: float = 0.0
 
     def as_dict(self) -> dict:
         """JSON-ready, rounded."""
@@ -82,6 +89,7 @@ class Derivation:
             "kp": r(self.kp), "kd": r(self.kd), "physics_dt": self.physics_dt,
             "static_torque": r(self.static_torque), "inertia": r(self.inertia), "foot_force_z": r(self.foot_force_z),
             "stability_b": r(self.stability_b), "stability_a": r(self.stability_a),
+            "mode_b": float(f"{self.mode_b:.4g}"), "mode_a": float(f"{self.mode_a:.4g}"),
         }
 
 
@@ -145,7 +153,8 @@ def derive_gains(spec: RobotSpec, legs: tuple[tuple[str, ...], ...], physics_dt:
     foot_z = F.reshape(len(spec.foot_links), rows)[:, 2]
 
     M = pinocchio.crba(model, data, q)
-    inertia = np.array([M[v, v] for v in v_index])
+    M_full = np.triu(M) + np.triu(M, 1).T  # crba fills the upper triangle
+    inertia = np.array([M_full[v, v] for v in v_index])
     pinocchio.centerOfMass(model, data, q, True)
     total = float(data.mass[0])
     com = np.array(data.com[0])
@@ -176,29 +185,41 @@ def derive_gains(spec: RobotSpec, legs: tuple[tuple[str, ...], ...], physics_dt:
         kp[group] = kp[group].max()
 
     steps = (physics_dt,) if physics_dt else PHYSICS_STEPS
+    rate_kp = _mode_rate(M_full, v_index, kp)  # [1/s²] the stiffest mode of the PD on the free-floating robot
     for dt in steps:
         b = kp * dt**2 / inertia
-        if np.all(b <= B_MAX) or physics_dt:
-            kd = np.minimum(2.0 * ZETA * np.sqrt(kp * inertia), A_MAX * inertia / dt)
+        b_mode = rate_kp * dt**2
+        if b_mode <= B_MAX or physics_dt:
+            kd = 2.0 * ZETA * np.sqrt(kp * inertia)
             for group in _leg_roles(spec, legs):
                 kd[group] = kd[group].min()
+            a_mode = _mode_rate(M_full, v_index, kd) * dt
+            if a_mode > A_MAX:
+                kd *= A_MAX / a_mode
+                a_mode = A_MAX
             a = kd * dt / inertia
-            if physics_dt and not np.all(b + 2 * a < 4.0):
-                worst = int(np.argmax(b + 2 * a))
+            if physics_dt and not b_mode + 2 * a_mode < 4.0:
                 raise RobotFileError(
-                    f"{sidecar_label}: physics_dt = {dt:g}: expected a step at which the PD of joint "
-                    f"{spec.joint_names[worst]!r} is stable (Kp dt²/I = {b[worst]:.3g}; needs Kp dt²/I + 2 Kd dt/I < 4: "
-                    f"a smaller physics_dt or smaller kp)"
+                    f"{sidecar_label}: physics_dt = {dt:g}: expected a step at which the explicit PD is stable "
+                    f"(Kp dt²/I of the stiffest mode = {b_mode:.3g}, needs Kp dt²/I + 2 Kd dt/I < 4): a smaller physics_dt or kp"
                 )
             return Derivation(
                 kp=tuple(float(f"{v:.4g}") for v in kp), kd=tuple(float(f"{v:.4g}") for v in kd), physics_dt=float(dt),
                 static_torque=tuple(tau_all[v_index].tolist()), inertia=tuple(inertia.tolist()),
                 foot_force_z=tuple(foot_z.tolist()), stability_b=tuple(b.tolist()), stability_a=tuple(a.tolist()),
+                mode_b=float(b_mode), mode_a=float(a_mode),
             )
     b = kp * PHYSICS_STEPS[-1] ** 2 / inertia
     worst = int(np.argmax(b))
     raise RobotFileError(
-        f"{spec.urdf_path}: no stable explicit PD even at {PHYSICS_STEPS[-1]:g} s: joint {spec.joint_names[worst]!r} "
-        f"has effective inertia {inertia[worst]:.3g} kg·m² and needs Kp {kp[worst]:.3g} N·m/rad "
-        f"(Kp dt²/I = {b[worst]:.3g} > {B_MAX:g}); set kp, kd and physics_dt in {sidecar_label}"
+        f"{spec.urdf_path}: no stable explicit PD even at {PHYSICS_STEPS[-1]:g} s: the stiffest mode has "
+        f"Kp dt²/I = {rate_kp * PHYSICS_STEPS[-1] ** 2:.3g} > {B_MAX:g} (lightest joint {spec.joint_names[worst]!r}, "
+        f"{inertia[worst]:.3g} kg·m², Kp {kp[worst]:.3g} N·m/rad); set kp, kd and physics_dt in {sidecar_label}"
     )
+
+
+def _mode_rate(M: np.ndarray, v_index: np.ndarray, gains: np.ndarray) -> float:
+    """Largest eigenvalue of M⁻¹ G, G the gains on the joints' velocity indices (zero on the floating base)."""
+    G = np.zeros_like(M)
+    G[v_index, v_index] = gains
+    return float(np.max(np.linalg.eigvals(np.linalg.solve(M, G)).real))
