@@ -14,8 +14,10 @@ from frbench.robots.registry import add_user_robot, remove_user_robot, user_robo
 
 
 def _urdf(tmp_path, text, name):
+    """The URDF and a sidecar giving its height (no settling in the simulators: these tests are about the registry)."""
     path = tmp_path / f"{name}.urdf"
     path.write_text(text)
+    (tmp_path / f"{name}.frbench.toml").write_text("nominal_height = 0.3\n")
     return path
 
 
@@ -110,10 +112,11 @@ def test_sim_urdf_cache_stays_bounded(tmp_path):
 
 def test_evaluation_records_the_check_of_a_robot_given_by_path(tmp_path, quadruped_urdf_text):
     from frbench.robots.check import checks_for_evaluation
+    from frbench.robots.sidecar import PHYSICS_STEPS
 
     path = _urdf(tmp_path, quadruped_urdf_text, "limp")
     (tmp_path / "limp.frbench.toml").write_text("kp = 2.0\nkd = 0.1\nnominal_height = 0.3\n")
     checks = checks_for_evaluation(["go2", str(path)])
     assert set(checks) == {"limp"}  # built-in robots are not re-checked
-    assert checks["limp"]["ok"] is False and checks["limp"]["physics_dt"] == 0.005
+    assert checks["limp"]["ok"] is False and checks["limp"]["physics_dt"] in PHYSICS_STEPS
     assert any("does not stand" in problem for problem in checks["limp"]["problems"])

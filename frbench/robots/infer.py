@@ -38,7 +38,7 @@ import numpy as np
 
 from frbench.errors import RobotFileError
 from frbench.robots.builder import spec_from_urdf
-from frbench.robots.kinematics import chain_poses, link_poses, standing_height
+from frbench.robots.kinematics import chain_poses_batch, link_poses, standing_height
 from frbench.robots.sidecar import (
     HUMANOID_LEG_KEYS,
     QUADRUPED_LEG_KEYS,
@@ -211,27 +211,21 @@ def _stand_leg(tree: UrdfTree, joints: list[str], foot: str, limits: dict, reach
     upper, knee = pitch[0], pitch[1]
     ankle = pitch[-1] if flat and len(pitch) >= 3 else None
     top = tree.joints[joints[0]].child
-    grid_u = np.linspace(*limits[upper], 41)
-    grid_k = np.linspace(*limits[knee], 41)
-    samples = []
-    for u in grid_u:
-        for k in grid_k:
-            q = dict(pose, **{upper: u, knee: k})
-            if ankle is not None:
-                q[ankle] = float(np.clip(-(u + k), *limits[ankle]))
-            poses = chain_poses(tree, foot, q)
-            offset = poses[foot][:3, 3] - poses[top][:3, 3]
-            tilt = abs(poses[foot][0, 2]) if ankle is not None else 0.0
-            samples.append((q, offset, tilt))
-    reach = max(-offset[2] for _, offset, _ in samples)
+    u, k = (g.ravel() for g in np.meshgrid(np.linspace(*limits[upper], 41), np.linspace(*limits[knee], 41), indexing="ij"))
+    q = {j: np.full(len(u), v) for j, v in pose.items()}
+    q[upper], q[knee] = u, k
+    if ankle is not None:
+        q[ankle] = np.clip(-(u + k), *limits[ankle])
+    poses = chain_poses_batch(tree, foot, q)
+    offset = poses[foot][:, :3, 3] - poses[top][:, :3, 3]  # (N, 3)
+    tilt = np.abs(poses[foot][:, 0, 2]) if ankle is not None else 0.0
+    reach = float(np.max(-offset[:, 2]))
     k_lo, k_hi = limits[knee]
     room = 1.0 if abs(k_hi) >= abs(k_lo) else -1.0  # the knee bends towards the side with more room
-    best, best_cost = pose, np.inf
-    for q, offset, tilt in samples:
-        wrong_way = 0.05 if np.sign(q[knee]) == -room and abs(q[knee]) > 1e-6 else 0.0
-        cost = abs(offset[0]) + abs(-offset[2] - reach_fraction * reach) + tilt + 0.02 * (abs(q[upper]) + abs(q[knee])) + wrong_way
-        if cost < best_cost:
-            best, best_cost = q, cost
+    wrong_way = np.where((np.sign(k) == -room) & (np.abs(k) > 1e-6), 0.05, 0.0)
+    cost = np.abs(offset[:, 0]) + np.abs(-offset[:, 2] - reach_fraction * reach) + tilt + 0.02 * (np.abs(u) + np.abs(k)) + wrong_way
+    i = int(np.argmin(cost))
+    best = {j: values[i] for j, values in q.items()}
     return {j: float(v) for j, v in best.items()}
 
 
