@@ -83,10 +83,17 @@ def test_a_robot_whose_file_vanished_is_listed_as_unavailable(tmp_path, quadrupe
     assert rows["go2"]["available"] is True
     assert main(["robots"]) == 0
     assert f"ghost        unavailable: its URDF {path.resolve()} no longer exists" in capsys.readouterr().out
-    assert main(["policies", "--json"]) == 0
-    assert "scripted" in capsys.readouterr().out
     assert main(["robot", "remove", "ghost"]) == 0
     assert "removed robot 'ghost'" in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_policies_list_with_a_vanished_robot(tmp_path, quadruped_urdf_text, capsys):
+    path = _urdf(tmp_path, quadruped_urdf_text, "ghost")
+    add_user_robot(path, "ghost", check=_passing)
+    path.unlink()
+    assert main(["policies", "--json"]) == 0
+    assert "scripted" in capsys.readouterr().out
 
 
 def test_cli_add_runs_the_check_and_exits_1_when_it_fails(tmp_path, quadruped_urdf_text, capsys):
