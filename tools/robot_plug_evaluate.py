@@ -3,7 +3,7 @@
 For each file it runs, one after the other::
 
     frbench evaluate --policy scripted --robots PATH --terrains flat --levels 1 --seeds 0 --episodes 8
-    frbench evaluate --policy frnet    --robots PATH --terrains flat --levels 1 --seeds 0 --episodes 1
+    frbench evaluate --policy frnet    --robots PATH --terrains flat --levels 1 --seeds 0 --episodes 1 --backends mujoco
 
 and prints the success rate per simulator (and whether FR-Net ran).
 
@@ -25,11 +25,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from robot_plug_table import QUADRUPEDS, resolve  # noqa: E402
 
 
-def evaluate(path: str, policy: str, episodes: int) -> dict:
+def evaluate(path: str, policy: str, episodes: int, backends: str = "mujoco,pybullet") -> dict:
     """Run `frbench evaluate` on one robot; success rate per backend or the error."""
     out = Path(tempfile.mkdtemp(prefix="frbench-plug-eval-")) / "results.json"
     command = [sys.executable, "-m", "frbench.cli", "evaluate", "--policy", policy, "--robots", path, "--terrains", "flat",
-               "--levels", "1", "--seeds", "0", "--episodes", str(episodes), "--jobs", "1", "--out", str(out)]
+               "--levels", "1", "--seeds", "0", "--episodes", str(episodes), "--backends", backends, "--jobs", "1", "--out", str(out)]
     started = time.perf_counter()
     run = subprocess.run(command, capture_output=True, text=True)
     row = {"rc": run.returncode, "seconds": round(time.perf_counter() - started, 1)}
@@ -56,7 +56,7 @@ def main() -> int:
             continue
         row = {"file": entry, "scripted": evaluate(resolve(entry), "scripted", 8)}
         if args.frnet:
-            row["frnet"] = evaluate(resolve(entry), "frnet", 1)
+            row["frnet"] = evaluate(resolve(entry), "frnet", 1, "mujoco")
         print(json.dumps(row), flush=True)
     return 0
 
