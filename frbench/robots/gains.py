@@ -52,7 +52,7 @@ SAG = 0.04  # [rad] static sag allowed by Kp
 FLOOR_ANGLE = 0.5  # [rad] sag under the tilt loads of the floor
 EFFORT_FRACTION = 0.8
 ZETA = 0.7
-A_MAX = 0.6
+A_MAX = 1.0
 B_MAX = 1.0
 MOMENT_ARM = 0.1  # [m] weight of foot moments against forces in the least-norm load sharing
 
