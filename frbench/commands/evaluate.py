@@ -66,6 +66,12 @@ def run(args) -> int:
     out = args.out or Path("results") / f"{Path(args.policy).stem or 'policy'}.json"
     check_output_path(out)
     policy = validate(request)
+    from frbench.robots.check import checks_for_evaluation
+
+    robot_checks = checks_for_evaluation(request.robots)
+    for name, check in robot_checks.items():
+        if not check["ok"]:
+            print(f"frbench evaluate: warning: robot {name!r} fails `frbench robot check`: {'; '.join(check['problems'])}", file=sys.stderr)
     cells = request.cells()
     print(
         f"frbench evaluate: policy {policy.name!r}, {len(cells)} cells x {request.episodes} episodes "
@@ -76,6 +82,8 @@ def run(args) -> int:
     with tqdm(total=len(cells), unit="cell", file=sys.stderr, dynamic_ncols=True) as bar:
         episodes = run_grid(request, progress=lambda cell: bar.update(1))
     results = build_results(request, policy, episodes)
+    for name, check in robot_checks.items():
+        results["robots"][name]["check"] = check
     print(results_table(results["summary"], results["sim_to_sim"]))
     print("\nSuccess by initial pose:\n" + initial_pose_table(episodes))
     atomic_write_text(out, json.dumps(results, indent=1) + "\n")

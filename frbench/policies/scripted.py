@@ -4,9 +4,10 @@ A per-environment state machine driven by proprioception only: the projected
 gravity g (body frame; (0, 0, -1) upright, (0, 0, +1) on the back), the
 measured joint angles (only to start from where the legs are) and the control
 steps spent in the current phase. Every pose is computed from the robot spec
-(joint limits, default pose; canonical order FL, FR, RL, RR x hip, thigh, calf,
-Unitree sign convention), so the same code drives Go2, Go1, Aliengo, Spot-like
-and Lite3-like. The roll direction d = +1 rolls the left side down (g_y grows),
+(joint limits, default pose; canonical order FL, FR, RL, RR x hip, thigh, calf),
+written in the Unitree sign convention; `canonical_signs` maps any robot's
+joint directions and knee direction onto it, so the same code drives Go2, Go1,
+Aliengo, Spot-like, Lite3-like and quadrupeds given by path (Solo, ANYmal, ...). The roll direction d = +1 rolls the left side down (g_y grows),
 d = -1 the right side. Phases:
 
 ``FOLD``    fold the legs against the body (calves at their folded limit, feet
@@ -73,12 +74,46 @@ BELLY_WAIT = 15
 #: Margin [rad] kept from the joint limits; the folded knee stays this much further inside.
 LIMIT_MARGIN = 0.05
 FOLD_MARGIN = 0.1
+#: Deepest knee fold [rad] when the limits allow more (limits of ±π from a file without real ones).
+MAX_FOLD = 2.7
+#: The straightened knee stays this bent [rad] when its limits would let it bend backwards.
+STRAIGHT_KNEE = 0.1
 #: Largest hip abduction used [rad] (also capped by the joint limits).
 MAX_ABDUCTION = 1.0
 #: Belly tuck: hips splayed outwards by this fraction of the abduction range.
 BELLY_SPLAY = 0.5
 #: ROLL_B: the folded lower legs' thighs swing this much [rad] further back, under the back.
 LOWER_THIGH_BACK = 0.8
+
+
+def canonical_signs(spec: RobotSpec) -> np.ndarray:
+    """Per joint ±1 mapping the robot's angles to the Unitree convention the poses are written in, (n_joints,).
+
+    Canonical: +hip moves the foot towards +y (rotation about the body's +x),
+    thigh and calf rotate about +y, and the standing calf angle is negative
+    (knee bent backwards). Axes are read from the simulation URDF at the zero
+    pose; a leg whose standing knee bends the other way (Solo, ANYmal) is
+    mirrored front to back (thigh and calf both flipped), which leaves the
+    fold-roll-stand motion unchanged.
+    """
+    from frbench.robots.kinematics import link_poses
+    from frbench.robots.sim_urdf import sim_robot_file
+    from frbench.robots.urdf_tree import parse_urdf
+
+    tree = parse_urdf(sim_robot_file(spec).path)
+    poses = link_poses(tree, {})
+    sign = np.ones(spec.n_joints)
+    default = np.asarray(spec.default_pose, dtype=float)
+    for k in range(len(QUADRUPED_LEGS)):
+        hip, thigh, calf = 3 * k, 3 * k + 1, 3 * k + 2
+        axes = []
+        for j, component in ((hip, 0), (thigh, 1), (calf, 1)):
+            joint = tree.joints[spec.joint_names[j]]
+            axis = poses[joint.parent][:3, :3] @ joint.origin[:3, :3] @ (joint.axis / np.linalg.norm(joint.axis))
+            axes.append(1.0 if axis[component] >= 0 else -1.0)
+        mirror = 1.0 if axes[2] * default[calf] <= 0 else -1.0
+        sign[hip], sign[thigh], sign[calf] = axes[0], axes[1] * mirror, axes[2] * mirror
+    return sign
 
 
 def _smoothstep(x: np.ndarray) -> np.ndarray:
@@ -98,10 +133,14 @@ class ScriptedPolicy:
 
     # ------------------------------------------------------------------ poses
     def _build_poses(self, spec: RobotSpec) -> None:
-        """Every pose from the spec's limits and default pose (all (n_joints,) arrays)."""
-        self.default = np.asarray(spec.default_pose, dtype=float)
-        self.lo = np.asarray(spec.joint_lower, dtype=float) + LIMIT_MARGIN
-        self.hi = np.asarray(spec.joint_upper, dtype=float) - LIMIT_MARGIN
+        """Every pose from the spec's limits and default pose (all (n_joints,) arrays), in canonical signs."""
+        self.sign = canonical_signs(spec)
+        default = self.sign * np.asarray(spec.default_pose, dtype=float)
+        lower = self.sign * np.asarray(spec.joint_lower, dtype=float)
+        upper = self.sign * np.asarray(spec.joint_upper, dtype=float)
+        self.default = default
+        self.lo = np.minimum(lower, upper) + LIMIT_MARGIN
+        self.hi = np.maximum(lower, upper) - LIMIT_MARGIN
         n = spec.n_joints
         self.hip, self.thigh, self.calf = (np.arange(j, n, 3) for j in range(3))
         self._is_calf = np.zeros(n, dtype=bool)
@@ -114,7 +153,7 @@ class ScriptedPolicy:
         self.abduct_in = np.minimum(np.where(self.left, -hip_lo, hip_hi), MAX_ABDUCTION)
 
         fold = self.default.copy()
-        fold[self.calf] = self.lo[self.calf] + FOLD_MARGIN  # knees folded
+        fold[self.calf] = np.maximum(self.lo[self.calf] + FOLD_MARGIN, -MAX_FOLD)  # knees folded
         fold[self.thigh] = -fold[self.calf] / 2.0  # feet (about) under the hips
         fold[self.hip] = 0.0
         self.fold = self._clip(fold)
@@ -124,7 +163,7 @@ class ScriptedPolicy:
         self.belly = self._clip(belly)
 
         # A straightened leg pointing out of the back: thigh ~ pi - calf / 2, as far as the limit allows.
-        self.push_calf = self.hi[self.calf]
+        self.push_calf = np.minimum(self.hi[self.calf], -STRAIGHT_KNEE)  # the straightest knee, never bent backwards
         self.push_thigh = np.minimum(self.hi[self.thigh], np.pi - self.push_calf / 2.0)
 
     def topple_pose(self, nose_down: bool) -> np.ndarray:
@@ -177,7 +216,7 @@ class ScriptedPolicy:
         """Joint targets (N, n_joints) [rad]."""
         g = np.asarray(obs["projected_gravity"], dtype=float)
         if self.target is None:  # first step: interpolate from where the joints are
-            self.target = self._clip(np.asarray(obs["joint_pos"], dtype=float).copy())
+            self.target = self._clip(self.sign * np.asarray(obs["joint_pos"], dtype=float))
             self.start = self.target.copy()
             self.goal[g[:, 2] < TIPPED_GZ] = self.belly
             self._prev_g = g.copy()
@@ -193,7 +232,7 @@ class ScriptedPolicy:
         end = np.where(calf, CALF_WINDOW[self.phase, 1:], OTHER_WINDOW[self.phase, 1:])
         w = _smoothstep((progress - begin) / (end - begin))
         self.target = self._clip(self.start + w * (self.goal - self.start))
-        return self.target.copy()
+        return self.sign * self.target
 
     # ------------------------------------------------------------ the machine
     def _enter(self, i: int, phase: int, goal: np.ndarray) -> None:

@@ -2,12 +2,17 @@
 
 Loads the robot in Pinocchio, MuJoCo and PyBullet and compares total mass and
 whole-body CoM at the default pose and at random configurations, then holds
-it standing with the PD for 2 s in both simulators. A plugin author runs this
-on a new robot; the test suite runs it on every built-in one.
+it standing with the PD for 2 s in both simulators. For a robot given by path
+the report also carries its derived gains and physics step (`frbench.robots.gains`),
+its kinematic and measured standing heights, and the check fails when a
+simulator settles more than `SAG_TOLERANCE` below the kinematic height. A plugin
+author runs this on a new robot; the test suite runs it on every built-in one.
 """
 
 from __future__ import annotations
 
+import json
+import time
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -19,6 +24,7 @@ MASS_TOLERANCE = 1e-6  # kg
 COM_TOLERANCE = 1e-4  # m
 HEIGHT_TOLERANCE = 0.10  # fraction of nominal height
 FORCE_TOLERANCE = 0.05  # fraction of m·g
+SAG_TOLERANCE = 0.10  # fraction of the kinematic standing height (robots given by path)
 STAND_SECONDS = 2.0
 BACKEND_NAMES = ("mujoco", "pybullet")
 
@@ -34,6 +40,13 @@ class CheckReport:
     com: dict[str, list] = field(default_factory=dict)
     max_com_error: float = 0.0
     standing: dict[str, dict] = field(default_factory=dict)
+    kind: str = ""
+    physics_dt: float = 0.0
+    kp: list = field(default_factory=list)
+    kd: list = field(default_factory=list)
+    kinematic_height: float | None = None
+    derivation: dict | None = None
+    seconds: float = 0.0
     problems: list[str] = field(default_factory=list)
 
     def as_dict(self) -> dict:
@@ -55,7 +68,13 @@ def check_robot(spec: RobotSpec, n_random: int = 3, seed: int = 0, stand: bool =
     from frbench.backends import make_backend
     from frbench.backends.base import RobotState
 
-    report = CheckReport(robot=spec.name)
+    started = time.perf_counter()
+    extra = dict(spec.extra)
+    report = CheckReport(robot=spec.name, kind=spec.kind, physics_dt=spec.physics_dt, kp=list(spec.kp), kd=list(spec.kd))
+    if "kinematic_height" in extra:
+        report.kinematic_height = float(extra["kinematic_height"])
+    if "derivation" in extra:
+        report.derivation = json.loads(extra["derivation"])
     rng = np.random.default_rng(seed)
     pos, quat, q = random_configurations(spec, rng, n_random)
     pos = np.vstack([[0.0, 0.0, 1.0], pos])
@@ -87,7 +106,14 @@ def check_robot(spec: RobotSpec, n_random: int = 3, seed: int = 0, stand: bool =
             report.standing[name] = result
             if not result["ok"]:
                 report.problems.append(f"{name}: does not stand ({result['reason']})")
+            kinematic = report.kinematic_height
+            if kinematic and result["height"] < (1 - SAG_TOLERANCE) * kinematic:
+                report.problems.append(
+                    f"{name}: sags to {result['height']:.3f} m, {100 * (1 - result['height'] / kinematic):.1f} % below its "
+                    f"kinematic standing height {kinematic:.3f} m; set a stiffer kp in the sidecar"
+                )
     report.ok = not report.problems
+    report.seconds = time.perf_counter() - started
     return report
 
 
@@ -107,10 +133,10 @@ def stand_test(spec: RobotSpec, backend_name: str, seconds: float = STAND_SECOND
     finally:
         backend.close()
     weight = ground_truth.total_mass(spec) * 9.81
-    height = float(state.base_pos[0, 2])
+    height = float(state.base_pos[0, 2]) if np.isfinite(state.base_pos[0, 2]) else float("nan")
     force_z = float(contacts.link_force[0, :, 2].sum())
-    height_error = abs(height - spec.nominal_height) / spec.nominal_height
-    force_error = abs(force_z - weight) / weight
+    height_error = abs(height - spec.nominal_height) / spec.nominal_height if np.isfinite(height) else np.inf
+    force_error = abs(force_z - weight) / weight if np.isfinite(force_z) else np.inf
     feet_only = not contacts.group_contact[0].any()
     reasons = []
     if diverged:
@@ -120,7 +146,7 @@ def stand_test(spec: RobotSpec, backend_name: str, seconds: float = STAND_SECOND
     if force_error > FORCE_TOLERANCE:
         reasons.append(f"vertical contact force {force_z:.1f} N is {100 * force_error:.1f} % from m·g {weight:.1f} N")
     if not feet_only:
-        reasons.append("a body part other than the feet touches the ground")
+        reasons.append("a body part other than the feet touches the ground; set a taller [default_pose] or the feet in the sidecar")
     return {
         "ok": not reasons,
         "reason": "; ".join(reasons),
@@ -129,3 +155,25 @@ def stand_test(spec: RobotSpec, backend_name: str, seconds: float = STAND_SECOND
         "force_z": force_z,
         "weight": weight,
     }
+
+
+def checks_for_evaluation(names) -> dict[str, dict]:
+    """The check of every robot in ``names`` that is not built in (given by path, added, or a plugin).
+
+    Returns spec name → {"ok", "problems", "physics_dt", "nominal_height"}; `frbench evaluate` prints
+    the failures on stderr and records these in the results' ``robots`` table.
+    """
+    from frbench.robots import get_robot
+    from frbench.robots.builtin import BUILTIN_ROBOTS
+
+    out = {}
+    for name in names:
+        if name in BUILTIN_ROBOTS:
+            continue
+        spec = get_robot(name)
+        report = check_robot(spec)
+        out[spec.name] = {
+            "ok": report.ok, "problems": report.problems, "physics_dt": spec.physics_dt,
+            "nominal_height": spec.nominal_height,
+        }
+    return out

@@ -12,6 +12,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from frbench.errors import RobotFileError
 from frbench.robots.sim_urdf import sim_robot_file
 from frbench.robots.spec import RobotSpec
 
@@ -37,7 +38,10 @@ def load(spec: RobotSpec) -> PinocchioRobot:
     import pinocchio
 
     path = sim_robot_file(spec).path
-    model = pinocchio.buildModelFromUrdf(str(path), pinocchio.JointModelFreeFlyer())
+    try:
+        model = pinocchio.buildModelFromUrdf(str(path), pinocchio.JointModelFreeFlyer())
+    except ValueError as exc:
+        raise RobotFileError(f"{spec.urdf_path}: Pinocchio cannot load its simulation URDF {path} ({exc})") from None
     q_index = np.array([model.joints[model.getJointId(name)].idx_q for name in spec.joint_names])
     group_joints = []
     for group in spec.mass_groups:

@@ -1,76 +1,76 @@
-"""A `RobotSpec` for a URDF given by path: legs and groups inferred, a sidecar overrides.
+"""A `RobotSpec` for a URDF given by path: legs, pose, groups, gains inferred; a sidecar overrides.
 
-Inference (quadrupeds): every leaf of the kinematic tree whose path from the
-root crosses at least three moving joints is a leg; its last three moving
-joints are hip, thigh and calf, the leaf is the foot. Legs are named FL, FR,
-RL, RR from where their hip sits on the trunk. The standing pose puts each
-foot under its hip at 70 % of the leg's reach, searched over the joint limits.
+Legs. Every leaf of the kinematic tree ends a chain of moving joints from the
+root; chains that share their last moving joint are one limb (a foot with
+sensor frames is one leg). A limb is a *leg* when it has at least three moving
+joints, starts with a joint no other limb shares (arms and fingers share a
+waist or shoulder joint), and its leaf hangs, at the zero pose, more than half
+as far below the root as the lowest such leaf (when no limb hangs below the root at the zero pose,
+every such limb is a leg). Four legs make a quadruped (legs FL, FR, RL, RR from
+where their hips sit; the last three joints are hip, thigh, calf), two a
+humanoid (left, right; the other limbs, branching from the torso, are arms and
+head). Any other count is refused with the count and the sidecar keys to set
+(``kind``, ``legs``).
 
-The sidecar is a TOML file beside the URDF, ``<stem>.frbench.toml`` (or given
-explicitly), with any of::
+Standing pose. Each leg's pitch joints (axis along the body's y) are searched
+over their limits for the pose that puts the foot under the hip at
+`QUADRUPED_REACH` (quadruped) or `HUMANOID_REACH` (humanoid, foot kept flat) of
+the leg's reach, preferring the knee direction with more room inside the
+limits; other joints stay at 0 (clipped into their limits). A continuous joint
+gets limits of ±π unless the sidecar's ``joint_limits`` names it, and so does a
+joint whose file limits span more than a turn (placeholders such as ±10 rad). A file drawn
+y-up is turned upright first (`upright_rotation`, recorded in the spec).
 
-    name = "mydog"
-    kind = "quadruped"
-    kp = 60.0                 # [N·m/rad], or a table joint -> value (default 60)
-    kd = 1.5                  # [N·m·s/rad] (default 1.5)
-    nominal_height = 0.31     # [m]
-    physics_dt = 0.005
-    feet = ["FL_foot", "FR_foot", "RL_foot", "RR_foot"]
-    [default_pose]            # joint -> angle [rad]
-    FL_thigh_joint = 0.8
-    [joint_limits]            # joint -> [lower, upper] [rad]
-    FL_thigh_joint = [-1.5, 3.4]
-    [legs]                    # leg -> [hip, thigh, calf] joint names (skips inference)
-    FL = ["FL_hip_joint", "FL_thigh_joint", "FL_calf_joint"]
+Gains and physics step: :mod:`frbench.robots.gains`. Nominal height: measured
+by settling in both simulators (:mod:`frbench.robots.standing`).
+
+The sidecar (``<stem>.frbench.toml``, :mod:`frbench.robots.sidecar`) overrides
+any of these.
 """
 
 from __future__ import annotations
 
-import tomllib
+import json
+import re
 from pathlib import Path
 
 import numpy as np
 
 from frbench.errors import RobotFileError
 from frbench.robots.builder import spec_from_urdf
-from frbench.robots.kinematics import link_poses
-from frbench.robots.spec import QUADRUPED_LEGS, RobotSpec, quadruped_groups
-from frbench.robots.urdf_tree import MOVING_TYPES, UrdfTree, merge_fixed_joints, parse_urdf
+from frbench.robots.kinematics import chain_poses_batch, link_poses, standing_height
+from frbench.robots.sidecar import (
+    HUMANOID_LEG_KEYS,
+    QUADRUPED_LEG_KEYS,
+    Sidecar,
+    check_pose_in_limits,
+    read_sidecar,
+    sidecar_path,
+)
+from frbench.robots.spec import LinkGroup, RobotSpec, quadruped_groups
+from frbench.robots.urdf_tree import MOVING_TYPES, UrdfTree, merge_fixed_joints, parse_urdf, rotate_root
 
-SIDECAR_SUFFIX = ".frbench.toml"
-#: PD gains of a robot given by path when its sidecar names none (see builtin.py on gains).
-DEFAULT_KP, DEFAULT_KD = 60.0, 1.5
-_SIDECAR_KEYS = {"name", "kind", "kp", "kd", "nominal_height", "physics_dt", "feet", "default_pose", "joint_limits", "legs"}
-
-
-def sidecar_path(urdf: Path) -> Path:
-    """Where the sidecar of ``urdf`` is looked for."""
-    return urdf.with_name(urdf.stem + SIDECAR_SUFFIX)
-
-
-def read_sidecar(path: Path | None) -> dict:
-    """The sidecar's table ({} when there is none); unknown keys are refused."""
-    if path is None or not path.is_file():
-        return {}
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise RobotFileError(f"{path}: not valid TOML ({exc})") from None
-    unknown = set(data) - _SIDECAR_KEYS
-    if unknown:
-        raise RobotFileError(f"{path}: unknown key(s) {', '.join(sorted(unknown))}; expected some of {', '.join(sorted(_SIDECAR_KEYS))}")
-    return data
+QUADRUPED_REACH = 0.7
+HUMANOID_REACH = 0.95
+#: A limb hanging lower than this fraction of the lowest leaf's drop is a leg.
+LEG_DROP_FRACTION = 0.5
+#: [m] when no limb hangs lower than this at the zero pose, the legs are drawn level with the body.
+FLAT_DROP = 0.02
+#: [rad] limits a continuous joint gets (the sidecar's joint_limits narrows them).
+CONTINUOUS_LIMIT = float(np.pi)
+#: |axis · y| above this: a pitch joint.
+PITCH_AXIS = 0.9
+__all__ = ["spec_from_path", "infer_legs", "sidecar_path"]
 
 
 def _chains(tree: UrdfTree) -> list[tuple[str, list[str]]]:
     """(leaf link, moving joints from the root to it) for every leaf."""
     out = []
-    parents = {link for j in tree.joints.values() for link in [j.parent]}
+    parents = {j.parent for j in tree.joints.values()}
     for leaf in tree.links:
         if leaf in parents:
             continue
-        joints, link = [], leaf
-        joint = tree.parent_joint(link)
+        joints, joint = [], tree.parent_joint(leaf)
         while joint is not None:
             if joint.type in MOVING_TYPES:
                 joints.append(joint.name)
@@ -79,111 +79,350 @@ def _chains(tree: UrdfTree) -> list[tuple[str, list[str]]]:
     return out
 
 
-def infer_legs(tree: UrdfTree) -> dict[str, tuple[list[str], str]]:
-    """Leg name → ([hip, thigh, calf] joints, foot link), for a four-legged tree."""
-    legs = [(leaf, joints[-3:]) for leaf, joints in _chains(tree) if len(joints) >= 3]
-    if len(legs) != 4:
+def _limbs(tree: UrdfTree) -> list[tuple[str, list[str], float]]:
+    """One (lowest leaf, moving joints, drop below the root at the zero pose [m]) per last moving joint."""
+    poses = link_poses(tree, {})
+    by_last: dict[str, tuple[str, list[str], float]] = {}
+    for leaf, joints in _chains(tree):
+        if not joints:
+            continue
+        drop = -float(poses[leaf][2, 3])
+        if joints[-1] not in by_last or drop > by_last[joints[-1]][2]:
+            by_last[joints[-1]] = (leaf, joints, drop)
+    return list(by_last.values())
+
+
+_FRONT = re.compile(r"(^|[^a-z])(front|f[lr]|[lr]f)([^a-z]|$)")
+
+
+def upright_rotation(tree: UrdfTree) -> np.ndarray:
+    """R (3, 3) turning the root frame so the legs hang along −z and the body's long axis is x (identity if they do).
+
+    Files drawn y-up (pybullet_data's laikago) have their legs along −y at the
+    zero pose; the leg direction is snapped to the nearest axis, the long axis
+    of the feet's footprint becomes x, pointing to the legs whose names say
+    front (FL, LF, front, ...).
+    """
+    limbs = [limb for limb in _limbs(tree) if len(limb[1]) >= 3]
+    if not limbs:
+        return np.eye(3)
+    poses = link_poses(tree, {})
+    feet = np.array([poses[leaf][:3, 3] for leaf, _, _ in limbs])
+    mean = feet.mean(axis=0)
+    axis = int(np.argmax(np.abs(mean)))
+    if np.linalg.norm(mean) < 1e-6 or (axis == 2 and mean[2] < 0):
+        return np.eye(3)
+    up = np.zeros(3)
+    up[axis] = -np.sign(mean[axis])
+    others = [k for k in range(3) if k != axis]
+    drops = -(feet @ up)
+    lowest = [i for i in range(len(limbs)) if drops[i] > LEG_DROP_FRACTION * drops.max()]
+    if len(lowest) == 2:  # a biped: its feet spread sideways; left is where the leg named left is
+        side_axis = max(others, key=lambda k: abs(feet[lowest[0], k] - feet[lowest[1], k]))
+        left = np.zeros(3)
+        left[side_axis] = 1.0
+        named_left = [i for i in lowest if re.search(r"(^|[^a-z])(left|l)([^a-z]|$)|^l", " ".join([limbs[i][0], *limbs[i][1]]).lower())]
+        if named_left and feet[named_left[0], side_axis] < feet[[i for i in lowest if i not in named_left] or lowest, side_axis].mean():
+            left = -left
+        return np.array([np.cross(left, up), left, up])
+    forward_axis = max(others, key=lambda k: np.ptp(feet[:, k]))
+    forward = np.zeros(3)
+    forward[forward_axis] = 1.0
+    front = [i for i, (leaf, joints, _) in enumerate(limbs) if _FRONT.search(" ".join([leaf, *joints]).lower())]
+    if front and feet[front, forward_axis].mean() < feet[:, forward_axis].mean():
+        forward = -forward
+    return np.array([forward, np.cross(up, forward), up])
+
+
+def leg_candidates(tree: UrdfTree) -> list[tuple[str, list[str]]]:
+    """(foot link, joints) of every limb that is a leg (module docstring)."""
+    limbs = [limb for limb in _limbs(tree) if len(limb[1]) >= 3]
+    first = [joints[0] for _, joints, _ in limbs]
+    limbs = [limb for limb in limbs if first.count(limb[1][0]) == 1]  # arms and fingers share a waist or shoulder joint
+    if not limbs:
+        return []
+    lowest = max(drop for _, _, drop in limbs)
+    if lowest < FLAT_DROP:  # legs drawn level with the body at the zero pose: every long limb is a leg
+        return [(leaf, joints) for leaf, joints, _ in limbs]
+    return [(leaf, joints) for leaf, joints, drop in limbs if drop > LEG_DROP_FRACTION * lowest]
+
+
+def infer_legs(tree: UrdfTree, kind: str | None, label: str) -> tuple[str, dict[str, tuple[list[str], str]]]:
+    """(kind, leg name → (joints, foot link)) from the tree; refuses counts other than 4 or 2."""
+    legs = leg_candidates(tree)
+    if kind is None:
+        kind = {4: "quadruped", 2: "humanoid"}.get(len(legs))
+    wanted = {"quadruped": 4, "humanoid": 2}.get(kind)
+    if kind is None or len(legs) != wanted:
         found = ", ".join(leaf for leaf, _ in legs) or "none"
+        what = f"a {kind} needs {wanted}" if kind else "a quadruped needs 4, a humanoid 2"
         raise RobotFileError(
-            f"{tree.path}: no legs found: expected 4 chains of at least 3 moving joints from the root "
-            f"(hip, thigh, calf), found {len(legs)} ({found}); name them in the sidecar's [legs] table"
+            f"{tree.path}: found {len(legs)} legs ({found}), chains of at least 3 moving joints hanging below the "
+            f"root; {what}: name them in the sidecar's [legs] table (and set kind)"
         )
     poses = link_poses(tree, {})
-    named = {}
+    named: dict[str, tuple[list[str], str]] = {}
     for leaf, joints in legs:
-        hip_child = tree.joints[joints[0]].child
-        x, y = poses[hip_child][:2, 3]
-        leg = ("F" if x > 0 else "R") + ("L" if y > 0 else "R")
+        joints = joints[-3:] if kind == "quadruped" else joints
+        x, y = poses[tree.joints[joints[0]].child][:2, 3]
+        leg = (("F" if x > 0 else "R") + ("L" if y > 0 else "R")) if kind == "quadruped" else ("left" if y > 0 else "right")
         if leg in named:
             raise RobotFileError(
-                f"{tree.path}: two legs sit at the {leg} corner ({named[leg][1]} and {leaf}); "
-                "name them in the sidecar's [legs] table"
+                f"{label}: two legs sit at the {leg} {'corner' if kind == 'quadruped' else 'side'} "
+                f"({named[leg][1]} and {leaf}); name them in the sidecar's [legs] table"
             )
         named[leg] = (joints, leaf)
-    return named
+    return kind, named
 
 
-def _stand_pose(tree: UrdfTree, joints: list[str], foot: str, lower, upper) -> tuple[float, float, float]:
-    """(hip, thigh, calf) that puts the foot under the hip at 70 % of the reach."""
-    hip_lo, hip_hi = lower[0], upper[0]
-    hip = float(np.clip(0.0, hip_lo, hip_hi))
-    thighs = np.linspace(lower[1], upper[1], 41)
-    calves = np.linspace(lower[2], upper[2], 41)
-    hip_link = tree.joints[joints[0]].child
-    best, best_cost, samples = None, np.inf, []
-    for thigh in thighs:
-        for calf in calves:
-            poses = link_poses(tree, {joints[0]: hip, joints[1]: thigh, joints[2]: calf})
-            offset = poses[foot][:3, 3] - poses[hip_link][:3, 3]
-            samples.append((thigh, calf, offset))
-    reach = max(-s[2][2] for s in samples)
-    for thigh, calf, offset in samples:
-        # metres off the target, plus a little for large angles (prefers the branch nearest zero)
-        cost = abs(offset[0]) + abs(-offset[2] - 0.7 * reach) + 0.02 * (abs(thigh) + abs(calf))
-        if cost < best_cost:
-            best, best_cost = (hip, float(thigh), float(calf)), cost
-    return best
+def _limits(tree: UrdfTree, side: Sidecar, joint: str, label: str) -> tuple[float, float]:
+    if joint in side.joint_limits:
+        return side.joint_limits[joint]
+    j = tree.joints[joint]
+    if j.type == "continuous":
+        return (-CONTINUOUS_LIMIT, CONTINUOUS_LIMIT)
+    if j.lower is None or j.upper is None or not j.lower < j.upper:
+        raise RobotFileError(
+            f"{label}: joint {joint!r} has no usable limits (lower={j.lower}, upper={j.upper}); "
+            f"expected <limit lower=... upper=...> with lower < upper, or joint_limits.{joint} in {side.label}"
+        )
+    if j.upper - j.lower > 2 * np.pi + 1e-6:  # more than a turn: a placeholder (Solo12's ±10 rad), not a limit
+        return (max(float(j.lower), -CONTINUOUS_LIMIT), min(float(j.upper), CONTINUOUS_LIMIT))
+    return float(j.lower), float(j.upper)
 
 
-def spec_from_path(urdf: str | Path, sidecar: str | Path | None = None, name: str | None = None) -> RobotSpec:
-    """A quadruped `RobotSpec` for any URDF, inferred and then overridden by the sidecar."""
+def _pitch_joints(tree: UrdfTree, joints: list[str]) -> list[str]:
+    poses = link_poses(tree, {})
+    out = []
+    for name in joints:
+        joint = tree.joints[name]
+        axis = poses[joint.parent][:3, :3] @ joint.origin[:3, :3] @ (joint.axis / np.linalg.norm(joint.axis))
+        if abs(axis[1]) > PITCH_AXIS:
+            out.append(name)
+    return out
+
+
+def _stand_leg(tree: UrdfTree, joints: list[str], foot: str, limits: dict, reach_fraction: float, flat: bool) -> dict[str, float]:
+    """Pitch angles putting ``foot`` under the leg's first joint at ``reach_fraction`` of the reach."""
+    pitch = _pitch_joints(tree, joints)
+    pose = {j: float(np.clip(0.0, *limits[j])) for j in joints}
+    if len(pitch) < 2:
+        return pose
+    upper, knee = pitch[0], pitch[1]
+    ankle = pitch[-1] if flat and len(pitch) >= 3 else None
+    top = tree.joints[joints[0]].child
+    u, k = (g.ravel() for g in np.meshgrid(np.linspace(*limits[upper], 41), np.linspace(*limits[knee], 41), indexing="ij"))
+    q = {j: np.full(len(u), v) for j, v in pose.items()}
+    q[upper], q[knee] = u, k
+    if ankle is not None:
+        q[ankle] = np.clip(-(u + k), *limits[ankle])
+    poses = chain_poses_batch(tree, foot, q)
+    offset = poses[foot][:, :3, 3] - poses[top][:, :3, 3]  # (N, 3)
+    tilt = np.abs(poses[foot][:, 0, 2]) if ankle is not None else 0.0
+    reach = float(np.max(-offset[:, 2]))
+    k_lo, k_hi = limits[knee]
+    room = 1.0 if abs(k_hi) >= abs(k_lo) else -1.0  # the knee bends towards the side with more room
+    wrong_way = np.where((np.sign(k) == -room) & (np.abs(k) > 1e-6), 0.05, 0.0)
+    cost = np.abs(offset[:, 0]) + np.abs(-offset[:, 2] - reach_fraction * reach) + tilt + 0.02 * (np.abs(u) + np.abs(k)) + wrong_way
+    i = int(np.argmin(cost))
+    best = {j: values[i] for j, values in q.items()}
+    return {j: float(v) for j, v in best.items()}
+
+
+def _subtree(tree: UrdfTree, link: str) -> list[str]:
+    out, pending = [], [link]
+    while pending:
+        name = pending.pop()
+        out.append(name)
+        pending += [j.child for j in tree.child_joints(name)]
+    return out
+
+
+def _humanoid_groups(tree: UrdfTree, legs: dict[str, tuple[list[str], str]], feet: list[str]):
+    """Mass groups (trunk, legs, arms), contact groups (pelvis, torso, per leg thigh/shin, per upper limb) and knees."""
+    leg_links = {side: [l for l in _subtree(tree, tree.joints[legs[side][0][0]].child) if l not in feet] for side in legs}
+    in_leg = {l for links in leg_links.values() for l in links} | set(feet)
+    upper_leaves = [leaf for leaf, joints in _chains(tree) if leaf not in in_leg and joints]
+    # the torso: the deepest link above every upper-body leaf
+    paths = [[leaf, *tree.ancestors(leaf)][::-1] for leaf in upper_leaves]
+    torso = tree.root
+    if paths:
+        for depth in range(min(len(p) for p in paths)):
+            if len({p[depth] for p in paths}) == 1:
+                torso = paths[0][depth]
+    trunk = [tree.root] + [l for l in [torso, *tree.ancestors(torso)] if l != tree.root]
+    limbs: list[list[str]] = []
+    for link in trunk:
+        for joint in tree.child_joints(link):
+            if joint.child not in trunk and joint.child not in in_leg:
+                limbs.append(_subtree(tree, joint.child))
+    limb_links = {l for limb in limbs for l in limb}
+    trunk += [l for l in tree.links if l not in in_leg and l not in limb_links and l not in trunk]
+    mass = [LinkGroup("trunk", tuple(trunk)), LinkGroup("legs", tuple(l for s in legs for l in leg_links[s]) + tuple(feet))]
+    if limb_links:
+        mass.append(LinkGroup("arms", tuple(l for l in tree.links if l in limb_links)))
+    contact = [LinkGroup("pelvis", (tree.root,))]
+    if len(trunk) > 1:
+        contact.append(LinkGroup("torso", tuple(trunk[1:])))
+    knees = []
+    for side in legs:
+        joints = legs[side][0]
+        knee = _pitch_joints(tree, joints)[1:2] or joints[len(joints) // 2:][:1]
+        shin = _subtree(tree, tree.joints[knee[0]].child)
+        thigh = tuple(l for l in leg_links[side] if l not in shin)
+        shin = tuple(l for l in leg_links[side] if l in shin)
+        if thigh:
+            contact.append(LinkGroup(f"{side}_thigh", thigh))
+        if shin:
+            contact.append(LinkGroup(f"{side}_shin", shin))
+            knees.append(LinkGroup(f"{side}_shin", shin))
+    for limb in limbs:
+        contact.append(LinkGroup(f"limb_{limb[0]}", tuple(limb)))
+    return tuple(mass), tuple(contact), tuple(knees)
+
+
+def _legs_from_sidecar(tree: UrdfTree, side: Sidecar, kind: str) -> dict[str, tuple[list[str], str]]:
+    leaves = {js[-1]: leaf for leaf, js, _ in _limbs(tree)}
+    out = {}
+    for leg in (QUADRUPED_LEG_KEYS if kind == "quadruped" else HUMANOID_LEG_KEYS):
+        joints = list(side.legs[leg])
+        out[leg] = (joints, leaves.get(joints[-1]) or tree.joints[joints[-1]].child)
+    return out
+
+
+def safe_name(stem: str) -> str:
+    """A registry name from a file stem: lower case, unsafe characters as '_'."""
+    from frbench.robots.sim_urdf import safe_file_stem
+
+    return safe_file_stem(stem.lower())
+
+
+def provisional_spec(urdf: str | Path, sidecar: str | Path | None = None, name: str | None = None) -> tuple[RobotSpec, Sidecar, dict]:
+    """The spec before gains and measured height: (spec with placeholder gains, sidecar, legs)."""
     urdf = Path(urdf).resolve()
     side = read_sidecar(Path(sidecar) if sidecar else sidecar_path(urdf))
     tree = parse_urdf(urdf)
-    kind = side.get("kind", "quadruped")
-    if kind != "quadruped":
-        raise RobotFileError(f"{urdf}: kind {kind!r}: robots given by path must be quadrupeds (register a humanoid with a RobotSpec in a plugin)")
-    limit_overrides = {j: tuple(v) for j, v in side.get("joint_limits", {}).items()}
-    if "legs" in side:
-        legs = {}
-        for leg in QUADRUPED_LEGS:
-            if leg not in side["legs"]:
-                raise RobotFileError(f"sidecar of {urdf}: [legs] lacks leg {leg!r}; expected FL, FR, RL, RR")
-            joints = list(side["legs"][leg])
-            leaf = [l for l, js in _chains(tree) if js[-3:] == joints]
-            legs[leg] = (joints, leaf[0] if leaf else tree.joints[joints[-1]].child)
+    label = str(urdf)
+    rotation = upright_rotation(tree)
+    tree = rotate_root(tree, rotation)
+    if side.legs is not None or side.kind is not None:
+        side.check_against(tree, side.kind or ("humanoid" if side.legs and set(side.legs) == set(HUMANOID_LEG_KEYS) else "quadruped"))
+    if side.legs is not None:
+        kind = side.kind or ("humanoid" if set(side.legs) == set(HUMANOID_LEG_KEYS) else "quadruped")
+        legs = _legs_from_sidecar(tree, side, kind)
     else:
-        legs = infer_legs(tree)
-    feet = side.get("feet") or [legs[leg][1] for leg in QUADRUPED_LEGS]
-    joint_names = [j for leg in QUADRUPED_LEGS for j in legs[leg][0]]
-    for joint in joint_names:
-        if tree.joints[joint].type == "continuous" and joint not in limit_overrides:
+        kind, legs = infer_legs(tree, side.kind, label)
+    side.check_against(tree, kind)
+    leg_keys = QUADRUPED_LEG_KEYS if kind == "quadruped" else HUMANOID_LEG_KEYS
+    feet = list(side.feet) if side.feet else [legs[leg][1] for leg in leg_keys]
+    leg_joints = [j for leg in leg_keys for j in legs[leg][0]]
+    moving = [j.name for j in tree.joints.values() if j.type in MOVING_TYPES]
+    if kind == "quadruped":
+        extra = [j for j in moving if j not in leg_joints]
+        if extra:
             raise RobotFileError(
-                f"{urdf}: joint {joint!r} is continuous (no limits); give it limits in the sidecar's [joint_limits]"
+                f"{label}: {len(extra)} moving joints outside the four legs ({', '.join(extra[:4])}{', ...' if len(extra) > 4 else ''}); "
+                "a quadruped by path actuates its 12 leg joints only: make the others fixed in the URDF, or name the legs in "
+                f"{side.label}'s [legs]"
             )
+        joint_names = leg_joints
+        for leg, foot in zip(leg_keys, feet):
+            if foot == tree.joints[legs[leg][0][-1]].child:
+                raise RobotFileError(
+                    f"{label}: leg {leg} ends at its calf link {foot!r}, with no foot link below it; frbench tells foot "
+                    "contacts from shin contacts by a separate foot link: add one (a fixed joint to a link with a sphere "
+                    f"collision) to the URDF and name it in {side.label}'s feet"
+                )
+    else:
+        joint_names = leg_joints + [j for j in moving if j not in leg_joints]
+    side.check_complete(joint_names)
+    limits = {j: _limits(tree, side, j, label) for j in joint_names}
+    check_pose_in_limits(side, {j: v[0] for j, v in limits.items()}, {j: v[1] for j, v in limits.items()})
+    effort = {}
+    for j in joint_names:
+        value = side.effort.get(j) if isinstance(side.effort, dict) else side.effort
+        if value is None:
+            value = tree.joints[j].effort
+            if value is None or value <= 0:
+                raise RobotFileError(
+                    f"{label}: joint {j!r} has no positive effort limit (effort={value}); set effort.{j} (N·m) "
+                    f"or effort for every joint in {side.label}"
+                )
+        effort[j] = float(value)
     merged = merge_fixed_joints(tree, keep_links=set(feet))
-    pose = []
-    for leg in QUADRUPED_LEGS:
+    for foot in feet:
+        if foot not in merged.links:
+            raise RobotFileError(f"{label}: foot link {foot!r} is not in the file")
+    pose = {j: float(np.clip(0.0, *limits[j])) for j in joint_names}
+    for leg in leg_keys:
         joints, _ = legs[leg]
-        lower = [limit_overrides.get(j, (tree.joints[j].lower, tree.joints[j].upper))[0] for j in joints]
-        upper = [limit_overrides.get(j, (tree.joints[j].lower, tree.joints[j].upper))[1] for j in joints]
-        if any(v is None for v in (*lower, *upper)):
-            bad = next(j for j, lo, hi in zip(joints, lower, upper) if lo is None or hi is None)
-            raise RobotFileError(f"{urdf}: joint {bad!r} has no limits; expected <limit lower=... upper=...>")
-        pose += _stand_pose(merged, joints, legs[leg][1], lower, upper)
-    pose_table = side.get("default_pose", {})
-    pose = [float(pose_table.get(j, v)) for j, v in zip(joint_names, pose)]
-    link_of = lambda joint: next(l for l in [merged.joints[joint].child])  # noqa: E731
-    hips = tuple(link_of(legs[leg][0][0]) for leg in QUADRUPED_LEGS)
-    thighs = tuple(link_of(legs[leg][0][1]) for leg in QUADRUPED_LEGS)
-    calves = tuple(link_of(legs[leg][0][2]) for leg in QUADRUPED_LEGS)
-    mass, contact, knee = quadruped_groups(merged.root, hips, thighs, calves)
-    as_list = lambda value: [value[j] for j in joint_names] if isinstance(value, dict) else value  # noqa: E731
-    return spec_from_urdf(
-        name=name or side.get("name") or urdf.stem.lower(),
-        kind="quadruped",
+        foot = feet[leg_keys.index(leg)]
+        reach, flat = (QUADRUPED_REACH, False) if kind == "quadruped" else (HUMANOID_REACH, True)
+        pose.update(_stand_leg(merged, joints, foot, limits, reach, flat))
+    pose.update(side.default_pose)
+    if kind == "quadruped":
+        link_of = lambda joint: merged.joints[joint].child  # noqa: E731
+        mass, contact, knee = quadruped_groups(
+            merged.root,
+            tuple(link_of(legs[leg][0][0]) for leg in leg_keys),
+            tuple(link_of(legs[leg][0][1]) for leg in leg_keys),
+            tuple(link_of(legs[leg][0][2]) for leg in leg_keys),
+        )
+    else:
+        mass, contact, knee = _humanoid_groups(merged, legs, feet)
+    overrides = tuple((j, lo, hi) for j, (lo, hi) in limits.items() if (lo, hi) != (tree.joints[j].lower, tree.joints[j].upper))
+    ordered_pose = [pose[j] for j in joint_names]
+    spec = spec_from_urdf(
+        name=name or side.name or safe_name(urdf.stem),
+        kind=kind,
         urdf_path=urdf,
         joint_names=joint_names,
-        default_pose=pose,
-        kp=as_list(side.get("kp", DEFAULT_KP)),
-        kd=as_list(side.get("kd", DEFAULT_KD)),
+        default_pose=ordered_pose,
+        kp=1.0,
+        kd=0.0,
         foot_links=feet,
         mass_groups=mass,
         contact_groups=contact,
         knee_groups=knee,
-        physics_dt=float(side.get("physics_dt", 0.005)),
-        joint_limit_overrides=tuple((j, float(lo), float(hi)) for j, (lo, hi) in limit_overrides.items()),
-        nominal_height=side.get("nominal_height"),
+        physics_dt=side.physics_dt or 0.005,
+        joint_limit_overrides=overrides,
+        torque_limit_overrides=effort,
+        collision_shapes=tuple((foot, "sphere") for foot in feet) if kind == "quadruped" else (),
+        nominal_height=standing_height(merged, joint_names, ordered_pose, feet),
         source=f"user URDF {urdf}",
         license="user-supplied",
     )
+    rotated = () if np.allclose(rotation, np.eye(3)) else tuple(float(v) for v in rotation.flatten())
+    spec = spec.replace(trim_shins=kind == "quadruped", root_rotation=rotated)
+    return spec, side, {leg: tuple(legs[leg][0]) for leg in leg_keys}
+
+
+def spec_from_path(urdf: str | Path, sidecar: str | Path | None = None, name: str | None = None, measure: bool = True) -> RobotSpec:
+    """The `RobotSpec` of any quadruped or humanoid URDF (module docstring); ``measure`` settles it for the height."""
+    from frbench.robots.gains import derive_gains
+
+    spec, side, legs = provisional_spec(urdf, sidecar, name)
+    kinematic_height = spec.nominal_height
+    derivation = derive_gains(spec, tuple(legs.values()), side.physics_dt, side.label)
+    n = spec.n_joints
+    gains = {}
+    for key, derived in (("kp", derivation.kp), ("kd", derivation.kd)):
+        value = getattr(side, key)
+        gains[key] = tuple(value[j] for j in spec.joint_names) if isinstance(value, dict) else ((float(value),) * n if value is not None else derived)
+    spec = spec.replace(kp=gains["kp"], kd=gains["kd"], physics_dt=side.physics_dt or derivation.physics_dt)
+    extra = {
+        "legs": json.dumps(legs),
+        "derivation": json.dumps(derivation.as_dict()),
+        "kinematic_height": f"{kinematic_height:.6f}",
+        "sidecar": str(side.path) if side.path and side.path.is_file() else "",
+    }
+    if side.nominal_height is not None:
+        spec = spec.replace(nominal_height=side.nominal_height)
+    elif measure:
+        from frbench.robots.standing import measured_height
+
+        settled = measured_height(spec)
+        extra["standing"] = json.dumps(settled)
+        if np.isfinite(settled["nominal_height"]) and settled["nominal_height"] > 0:
+            spec = spec.replace(nominal_height=float(settled["nominal_height"]))
+    return spec.replace(extra=tuple(extra.items()))

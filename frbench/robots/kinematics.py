@@ -50,6 +50,31 @@ def link_poses(tree: UrdfTree, q: dict[str, float]) -> dict[str, np.ndarray]:
     return poses
 
 
+def _axis_rotations(axis: np.ndarray, angles: np.ndarray) -> np.ndarray:
+    """Rotation matrices (N, 3, 3) about ``axis`` by ``angles`` (N,) (Rodrigues)."""
+    x, y, z = axis / np.linalg.norm(axis)
+    k = np.array([[0, -z, y], [z, 0, -x], [-y, x, 0]])
+    s, c = np.sin(angles)[:, None, None], np.cos(angles)[:, None, None]
+    return np.eye(3) + s * k + (1 - c) * (k @ k)
+
+
+def chain_poses_batch(tree: UrdfTree, link: str, q: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """World transforms (N, 4, 4) of ``link`` and its ancestors for N configurations (joint -> angles (N,)): one leg's FK."""
+    n = len(next(iter(q.values()))) if q else 1
+    path = [link, *tree.ancestors(link)][::-1]
+    poses = {path[0]: np.tile(np.eye(4), (n, 1, 1))}
+    for parent, child in zip(path, path[1:]):
+        joint = tree.parent_joint(child)
+        motion = np.tile(np.eye(4), (n, 1, 1))
+        angle = np.broadcast_to(np.asarray(q.get(joint.name, 0.0), dtype=float), (n,))
+        if joint.type in ("revolute", "continuous"):
+            motion[:, :3, :3] = _axis_rotations(joint.axis, angle)
+        elif joint.type == "prismatic":
+            motion[:, :3, 3] = (joint.axis / np.linalg.norm(joint.axis))[None] * angle[:, None]
+        poses[child] = poses[parent] @ joint.origin @ motion
+    return poses
+
+
 def lowest_point(tree: UrdfTree, poses: dict[str, np.ndarray], links) -> float:
     """Lowest z [m] of the links' collision geometry (sphere bottoms, box corners, frame origins)."""
     lowest = np.inf

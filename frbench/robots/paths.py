@@ -42,7 +42,7 @@ def pybullet_data_file(relative: str) -> Path:
 def resolve_mesh(filename: str, urdf_dir: Path) -> Path:
     """Absolute path of a URDF mesh reference (``package://`` or relative)."""
     if filename.startswith("package://"):
-        rest = filename[len("package://"):]
+        rest = filename[len("package://"):].lstrip("/")
         package, _, inner = rest.partition("/")
         candidates = [cmeel_share() / rest]
         # ROS convention: package://<pkg>/... relative to a folder named <pkg> above the URDF

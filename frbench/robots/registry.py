@@ -14,6 +14,7 @@ An unknown name lists the known ones and suggests the closest.
 
 from __future__ import annotations
 
+import json
 import tomllib
 from functools import lru_cache
 from importlib.metadata import entry_points
@@ -55,6 +56,17 @@ def _is_path(name: str) -> bool:
     return name.endswith(".urdf") or "/" in name or Path(name).suffix == ".urdf"
 
 
+def unavailable_reason(entry: dict) -> str | None:
+    """Why a user robot cannot load (its URDF or sidecar file is gone), or None."""
+    urdf = Path(entry.get("urdf", ""))
+    if not urdf.is_file():
+        return f"its URDF {urdf} no longer exists"
+    sidecar = entry.get("sidecar")
+    if sidecar and not Path(sidecar).is_file():
+        return f"its sidecar {sidecar} no longer exists"
+    return None
+
+
 @lru_cache(maxsize=128)
 def _spec_by_name(name: str) -> RobotSpec:
     from frbench.robots.infer import spec_from_path
@@ -64,6 +76,9 @@ def _spec_by_name(name: str) -> RobotSpec:
     users = user_robots()
     if name in users:
         entry = users[name]
+        reason = unavailable_reason(entry)
+        if reason:
+            raise RobotFileError(f"robot {name!r} is unavailable: {reason}; `frbench robot remove {name}` unregisters it")
         return spec_from_path(entry["urdf"], entry.get("sidecar"), name=name)
     plugins = plugin_robots()
     if name in plugins:
@@ -89,21 +104,60 @@ def get_robot(name_or_path: str | RobotSpec) -> RobotSpec:
 
 
 def robot_names() -> list[str]:
-    """Every registered robot name: built-ins first, then user robots and plugins."""
+    """Every usable robot name: built-ins first, then user robots (those whose files exist) and plugins."""
     names = list(BUILTIN_ROBOTS)
-    names += [n for n in user_robots() if n not in names]
+    names += [n for n, entry in user_robots().items() if n not in names and unavailable_reason(entry) is None]
     names += [n for n in plugin_robots() if n not in names]
     return names
 
 
-def add_user_robot(urdf: str | Path, name: str) -> RobotSpec:
-    """Register ``urdf`` persistently as ``name`` (checked first: it must load)."""
-    from frbench.robots.infer import sidecar_path, spec_from_path
+def unavailable_robots() -> dict[str, str]:
+    """User robots that cannot load: name → reason."""
+    out = {}
+    for name, entry in user_robots().items():
+        reason = unavailable_reason(entry)
+        if reason:
+            out[name] = reason
+    return out
 
+
+def _write_user_robots(robots: dict[str, dict]) -> None:
+    lines = []
+    for robot, entry in sorted(robots.items()):
+        lines.append(f'[robots."{robot}"]')
+        lines += [f"{key} = {json.dumps(value)}" for key, value in entry.items()]
+        lines.append("")
+    atomic_write_text(user_robots_file(), "\n".join(lines))
+    _spec_by_name.cache_clear()
+
+
+def check_name(name: str) -> None:
+    """Refuse a registry name that is unsafe or taken by a built-in robot."""
+    from frbench.robots.sidecar import NAME_PATTERN
+
+    if not NAME_PATTERN.fullmatch(name):
+        raise RobotFileError(f"--name {name!r}: expected 1-64 letters, digits, '_' or '-', starting with a letter or digit")
     if name in BUILTIN_ROBOTS:
         raise RobotFileError(f"robot name {name!r} is a built-in robot; choose another name")
-    if not name.replace("_", "").replace("-", "").isalnum():
-        raise RobotFileError(f"robot name {name!r}: use letters, digits, '_' and '-' only")
+
+
+def add_user_robot(urdf: str | Path, name: str, force: bool = False, check=None) -> RobotSpec:
+    """Register ``urdf`` persistently as ``name``.
+
+    Args:
+        force: replace a robot of that name, and register even when ``check`` fails.
+        check: None, or a callable spec -> (ok, problems) run before anything is
+            written (``frbench robot add`` passes the conformance check).
+
+    Raises:
+        RobotFileError: bad name, taken name without ``force``, unusable file, or a failed check without ``force``.
+    """
+    from frbench.robots.infer import sidecar_path, spec_from_path
+
+    check_name(name)
+    robots = user_robots()
+    if name in robots and not force:
+        raise RobotFileError(f"robot {name!r} is already registered (urdf {robots[name].get('urdf')}); pass --force to replace it")
     urdf = Path(urdf).resolve()
     if not urdf.is_file():
         raise RobotFileError(f"{urdf}: no such URDF file")
@@ -111,14 +165,35 @@ def add_user_robot(urdf: str | Path, name: str) -> RobotSpec:
     from frbench.robots.sim_urdf import sim_robot_file
 
     sim_robot_file(spec)  # refuses an unusable file before anything is written
-    robots = user_robots()
+    entry = {"urdf": str(urdf)}
     side = sidecar_path(urdf)
-    robots[name] = {"urdf": str(urdf), **({"sidecar": str(side)} if side.is_file() else {})}
-    lines = []
-    for robot, entry in sorted(robots.items()):
-        lines.append(f'[robots."{robot}"]')
-        lines += [f'{key} = "{value}"' for key, value in entry.items()]
-        lines.append("")
-    atomic_write_text(user_robots_file(), "\n".join(lines))
-    _spec_by_name.cache_clear()
+    if side.is_file():
+        entry["sidecar"] = str(side)
+    if check is not None:
+        ok, problems = check(spec)
+        if not ok and not force:
+            raise CheckFailedError(
+                f"robot {name!r} not added: `frbench robot check` fails ({'; '.join(problems)}); fix it, or pass --force to add it anyway"
+            )
+        entry["check"] = "pass" if ok else "fail"
+    robots[name] = entry
+    _write_user_robots(robots)
     return spec
+
+
+def remove_user_robot(name: str) -> dict:
+    """Unregister a user robot; returns its entry."""
+    if name in BUILTIN_ROBOTS:
+        raise RobotFileError(f"robot {name!r} is built in and cannot be removed")
+    robots = user_robots()
+    if name not in robots:
+        raise unknown_name("user robot", name, robots)
+    entry = robots.pop(name)
+    _write_user_robots(robots)
+    return entry
+
+
+class CheckFailedError(RobotFileError):
+    """A robot that fails `frbench robot check` (exit status 1, like a failing check)."""
+
+    exit_status = 1

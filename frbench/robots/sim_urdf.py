@@ -15,12 +15,15 @@ self-contained URDF so that the three libraries see exactly the same robot:
   triangle inequality, moving joints with limits and effort.
 
 The result is cached under :func:`frbench.robots.paths.cache_dir` by content
-hash; its sha256 is the robot's checksum in every results file.
+hash (file names keep only safe characters of the robot's name, so nothing is
+written outside the cache; at most `CACHE_MAX_FILES` files, least recently used
+deleted first); its sha256 is the robot's checksum in every results file.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import re
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -31,10 +34,28 @@ from frbench.errors import RobotFileError
 from frbench.io import atomic_write_text, sha256_file, sha256_text
 from frbench.robots.paths import cache_dir
 from frbench.robots.spec import RobotSpec
-from frbench.robots.urdf_tree import Collision, UrdfTree, merge_fixed_joints, parse_urdf, write_urdf
+from frbench.robots.urdf_tree import Collision, UrdfTree, merge_fixed_joints, parse_urdf, rotate_root, write_urdf
 
 #: Bump when the derivation changes (invalidates caches, changes checksums).
-SIM_URDF_VERSION = 1
+SIM_URDF_VERSION = 2
+#: Principal moments below this fraction of a link's largest count as zero (round-off).
+ROUND_OFF = 1e-9
+#: [kg·m²] moments below this count as zero whatever the link (a 1 g, 1 mm sphere has 4e-10).
+NEGLIGIBLE_MOMENT = 1e-12
+#: A link whose smallest moment is zero (point mass, rod) gets this fraction of its largest on the diagonal.
+MIN_MOMENT_FRACTION = 1e-3
+#: Radius [m] of the sphere whose inertia a point-mass link (all moments zero) gets.
+POINT_MASS_RADIUS = 0.01
+#: A link whose largest moment is below this [kg·m²] and breaks the triangle inequality is balanced, not refused.
+SMALL_LINK_MOMENT = 1e-4
+#: A triangle-inequality violation up to this fraction of the largest moment is repaired, not refused.
+TRIANGLE_SLACK = 0.1
+#: [rad/s] velocity limit written for an actuated joint whose file gives none (no frbench code reads it).
+DEFAULT_VELOCITY_LIMIT = 100.0
+#: [kg] mass given to a massless foot link (kept apart for its contacts).
+MASSLESS_FOOT_MASS = 1e-6
+#: The cache keeps at most this many files per folder; the least recently used go first.
+CACHE_MAX_FILES = 200
 _MUJOCO_GEOM = {"box": "mjGEOM_BOX", "sphere": "mjGEOM_SPHERE", "cylinder": "mjGEOM_CYLINDER"}
 
 
@@ -73,26 +94,48 @@ class SimRobotFile:
         return float(sum(m for _, m in self.masses))
 
 
-def _check_inertial(tree: UrdfTree) -> None:
+def _check_inertial(tree: UrdfTree, feet=()) -> None:
     label = str(tree.path)
     for link in tree.links.values():
         merged = f" (with merged links {', '.join(link.merged)})" if link.merged else ""
+        if link.name in feet and link.mass == 0 and not tree.child_joints(link.name):
+            # a massless foot frame kept as a link for its contacts: the smallest mass both simulators accept
+            link.mass, link.has_inertial = MASSLESS_FOOT_MASS, True
+            link.inertia = np.eye(3) * 0.4 * link.mass * POINT_MASS_RADIUS**2
         if link.mass <= 0 or not np.isfinite(link.mass):
             raise RobotFileError(
                 f"{label}: link {link.name!r}{merged} has mass {link.mass:g} kg; every simulated link needs a positive mass"
             )
         eig = np.linalg.eigvalsh(0.5 * (link.inertia + link.inertia.T))
         scale = max(float(np.max(np.abs(eig))), 1e-12)
-        if eig[0] <= 1e-9 * scale or eig[0] <= 0:
+        # round-off: moments within ROUND_OFF of the largest count as zero (a point-mass foot gives -2e-22)
+        eig = np.where((np.abs(eig) <= ROUND_OFF * scale) | (np.abs(eig) < NEGLIGIBLE_MOMENT), 0.0, eig)
+        if eig[-1] == 0:  # a point mass: the inertia of a 1 cm sphere of its mass
+            link.inertia = np.eye(3) * 0.4 * link.mass * POINT_MASS_RADIUS**2
+            continue
+        if eig[0] < 0:
             raise RobotFileError(
                 f"{label}: link {link.name!r}{merged} has an inertia that is not positive definite "
-                f"(principal moments {', '.join(f'{e:.3g}' for e in eig)} kg·m²)"
+                f"(principal moments {', '.join(f'{e:.3g}' for e in eig)} kg·m²); fix its <inertia> in the URDF"
             )
+        if eig[0] == 0:
+            # a point mass or a rod: give it the smallest moment both simulators accept
+            link.inertia = link.inertia + np.eye(3) * MIN_MOMENT_FRACTION * scale
+            eig = np.linalg.eigvalsh(0.5 * (link.inertia + link.inertia.T))
         if eig[0] + eig[1] < eig[2] * (1 - 1e-6):
-            raise RobotFileError(
-                f"{label}: link {link.name!r}{merged} inertia violates the triangle inequality "
-                f"(principal moments {', '.join(f'{e:.3g}' for e in eig)} kg·m²)"
-            )
+            if eig[0] + eig[1] >= eig[2] * (1 - TRIANGLE_SLACK):
+                # a small violation (a rounded file): raise the smallest moment to meet the inequality
+                vals, vecs = np.linalg.eigh(0.5 * (link.inertia + link.inertia.T))
+                vals[0] = vals[2] - vals[1] + 1e-3 * vals[2]
+                link.inertia = vecs @ np.diag(vals) @ vecs.T
+                continue
+            if eig[2] > SMALL_LINK_MOMENT:
+                raise RobotFileError(
+                    f"{label}: link {link.name!r}{merged} inertia violates the triangle inequality "
+                    f"(principal moments {', '.join(f'{e:.3g}' for e in eig)} kg·m²); fix its <inertia> in the URDF"
+                )
+            # a tiny link (a point-mass foot): its moments become their mean, as MuJoCo's balanceinertia does
+            link.inertia = np.eye(3) * float(np.mean(eig))
 
 
 def _apply_joint_limits(tree: UrdfTree, spec: RobotSpec) -> None:
@@ -101,7 +144,14 @@ def _apply_joint_limits(tree: UrdfTree, spec: RobotSpec) -> None:
     for name in spec.joint_names:
         if name not in tree.joints:
             raise RobotFileError(f"{label}: joint {name!r} of robot {spec.name!r} is not in the file")
+    actuated = set(spec.joint_names)  # their limits and effort come from the spec (checked when it was built)
     for joint in tree.moving_joints():
+        if joint.name in actuated:
+            if joint.type == "continuous":
+                joint.type = "revolute"
+            if joint.velocity is None:  # urdfdom (Pinocchio) needs one; frbench's PD does not read it
+                joint.velocity = DEFAULT_VELOCITY_LIMIT
+            continue
         if joint.name in overrides:
             joint.lower, joint.upper = overrides[joint.name]
             if joint.type == "continuous":
@@ -126,6 +176,84 @@ def _apply_joint_limits(tree: UrdfTree, spec: RobotSpec) -> None:
         joint.lower, joint.upper, joint.effort = lower, upper, effort
 
 
+def _collada_vertices(root) -> np.ndarray:
+    """Vertices (n, 3) of a COLLADA document, placed by its scene's node matrices and unit."""
+    local = lambda element: element.tag.rsplit("}", 1)[-1]  # noqa: E731
+    geometries = {}
+    for geometry in root.iter():
+        if local(geometry) != "geometry":
+            continue
+        for array in geometry.iter():
+            if local(array) == "float_array" and "position" in (array.get("id") or "").lower():
+                geometries[geometry.get("id")] = np.array([float(v) for v in (array.text or "").split()]).reshape(-1, 3)
+                break
+    unit = next((float(e.get("meter", 1)) for e in root.iter() if local(e) == "unit"), 1.0)
+    placed = []
+
+    def visit(node, matrix):
+        for child in node:
+            tag = local(child)
+            if tag == "matrix":
+                matrix = matrix @ np.array([float(v) for v in child.text.split()]).reshape(4, 4)
+            elif tag == "translate":
+                step = np.eye(4)
+                step[:3, 3] = [float(v) for v in child.text.split()]
+                matrix = matrix @ step
+            elif tag == "scale":
+                matrix = matrix @ np.diag([*(float(v) for v in child.text.split()), 1.0])
+        for child in node:
+            if local(child) == "instance_geometry" and child.get("url", "").lstrip("#") in geometries:
+                vertices = geometries[child.get("url").lstrip("#")]
+                placed.append(vertices @ matrix[:3, :3].T + matrix[:3, 3])
+            elif local(child) == "node":
+                visit(child, matrix)
+
+    for scene in root.iter():
+        if local(scene) == "visual_scene":
+            visit(scene, np.eye(4))
+    vertices = np.vstack(placed) if placed else (np.vstack(list(geometries.values())) if geometries else np.zeros((0, 3)))
+    return vertices * unit
+
+
+def _text_mesh_vertices(path: Path) -> np.ndarray | None:
+    """Vertices (n, 3) of a mesh MuJoCo cannot decode (COLLADA ``.dae``, ASCII STL); None for other files."""
+    import xml.etree.ElementTree as ET
+
+    suffix = Path(path).suffix.lower()
+    try:
+        if suffix == ".dae":
+            return _collada_vertices(ET.parse(path).getroot())
+        if suffix == ".stl":
+            with open(path, "rb") as handle:
+                head = handle.read(5)
+            if head.lower() != b"solid":
+                return None
+            text = Path(path).read_text(encoding="utf-8", errors="replace")
+            if "facet" not in text:
+                return None
+            rows = [line.split()[1:4] for line in text.splitlines() if line.strip().startswith("vertex")]
+            return np.array(rows, dtype=float).reshape(-1, 3)
+    except (OSError, ValueError, ET.ParseError):
+        return np.zeros((0, 3))
+    return None
+
+
+def _aabb_primitive(vertices: np.ndarray, collision: Collision, kind: str, label) -> Collision:
+    """The primitive fitted to the axis-aligned bounding box of ``vertices`` (mesh frame, before scaling)."""
+    if len(vertices) == 0:
+        raise RobotFileError(f"{label}: collision mesh {collision.mesh} has no vertices frbench can read")
+    scaled = vertices * np.asarray(collision.size)
+    low, high = scaled.min(axis=0), scaled.max(axis=0)
+    center, extent = (low + high) / 2, np.maximum(high - low, 1e-4)
+    origin = collision.origin.copy()
+    origin[:3, 3] = collision.origin[:3, :3] @ center + collision.origin[:3, 3]
+    if kind == "sphere":
+        return Collision("sphere", (float(extent.max() / 2),), origin)
+    if kind == "cylinder":
+        return Collision("cylinder", (float(max(extent[0], extent[1]) / 2), float(extent[2])), origin)
+    return Collision("box", tuple(float(v) for v in extent), origin)
+
+
 def _fit_meshes(tree: UrdfTree, spec: RobotSpec) -> None:
     """Replace every mesh collision by the primitive MuJoCo's compiler fits to it."""
     import mujoco
@@ -133,8 +261,13 @@ def _fit_meshes(tree: UrdfTree, spec: RobotSpec) -> None:
     jobs: list[tuple[str, int, Collision]] = []
     for link in tree.links.values():
         for index, collision in enumerate(link.collisions):
-            if collision.kind == "mesh":
+            if collision.kind != "mesh":
+                continue
+            vertices = _text_mesh_vertices(collision.mesh)
+            if vertices is None:
                 jobs.append((link.name, index, collision))
+            else:
+                link.collisions[index] = _aabb_primitive(vertices, collision, spec.shape_of(link.name), tree.path)
     if not jobs:
         return
     mj = mujoco.MjSpec()
@@ -179,6 +312,43 @@ def _fit_meshes(tree: UrdfTree, spec: RobotSpec) -> None:
         tree.links[link_name].collisions[index] = fitted
 
 
+def _trim_shins(tree: UrdfTree, feet) -> None:
+    """Shorten each box or cylinder of a foot's parent link to end a foot radius short of the foot's centre (the foot stands).
+
+    A box fitted to a lower-leg mesh that includes the foot reaches the ground
+    beside the foot sphere; along its longest axis it is cut back to the foot
+    centre when that removes less than half of it.
+    """
+    for foot in feet:
+        joint = tree.parent_joint(foot)
+        if joint is None:
+            continue
+        foot_link = tree.links[foot]
+        centre = joint.origin[:3, 3] + (joint.origin[:3, :3] @ foot_link.collisions[0].origin[:3, 3] if foot_link.collisions else 0)
+        radius = max((c.size[0] for c in foot_link.collisions if c.kind == "sphere"), default=0.0)
+        shin = tree.links[joint.parent]
+        for index, box in enumerate(shin.collisions):
+            if box.kind not in ("box", "cylinder"):
+                continue
+            rot, pos = box.origin[:3, :3], box.origin[:3, 3]
+            local = rot.T @ (centre - pos)
+            axis = int(np.argmax(box.size)) if box.kind == "box" else 2
+            half = (box.size[axis] if box.kind == "box" else box.size[1]) / 2
+            end = np.sign(local[axis]) * half  # the box end on the foot's side
+            cut = local[axis] - np.sign(local[axis]) * radius  # a foot radius short of the foot centre
+            if abs(local[axis]) >= half + radius or abs(end - cut) > half or np.sign(cut) != np.sign(local[axis]):
+                continue
+            keep = -end
+            new_center, new_length = (keep + cut) / 2, abs(cut - keep)
+            size = list(box.size)
+            size[axis if box.kind == "box" else 1] = new_length
+            shift = np.zeros(3)
+            shift[axis] = new_center
+            origin = box.origin.copy()
+            origin[:3, 3] = pos + rot @ shift
+            shin.collisions[index] = Collision(box.kind, tuple(size), origin)
+
+
 def build_sim_tree(spec: RobotSpec) -> UrdfTree:
     """The checked, merged, mesh-free kinematic tree of ``spec`` (not cached)."""
     tree = parse_urdf(spec.urdf_path)
@@ -186,9 +356,13 @@ def build_sim_tree(spec: RobotSpec) -> UrdfTree:
         if foot not in tree.links:
             raise RobotFileError(f"{spec.urdf_path}: foot link {foot!r} of robot {spec.name!r} is not in the file")
     _apply_joint_limits(tree, spec)
+    if spec.root_rotation:
+        tree = rotate_root(tree, spec.root_rotation)
     tree = merge_fixed_joints(tree, keep_links=set(spec.foot_links))
-    _check_inertial(tree)
+    _check_inertial(tree, set(spec.foot_links))
     _fit_meshes(tree, spec)
+    if spec.trim_shins:
+        _trim_shins(tree, spec.foot_links)
     names = set(tree.links)
     for group in (*spec.mass_groups, *spec.contact_groups, *spec.knee_groups):
         for link in group.links:
@@ -198,15 +372,38 @@ def build_sim_tree(spec: RobotSpec) -> UrdfTree:
                     f"which is not a simulated link (links: {', '.join(tree.links)})"
                 )
     tree.name = spec.name
+    if next(iter(tree.links)) != tree.root:  # the backends read the first link as the root
+        root = tree.root
+        tree.links = {root: tree.links[root], **{k: v for k, v in tree.links.items() if k != root}}
     return tree
 
 
 def _spec_key(spec: RobotSpec, source_sha: str) -> str:
+    """Content key of the simulation URDF: only the fields the file depends on."""
     fields = dataclasses.asdict(spec)
     fields["urdf_path"] = source_sha
-    for key in ("source", "license", "notes", "extra", "name"):
+    for key in ("source", "license", "notes", "extra", "name", "kp", "kd", "nominal_height", "physics_dt", "default_pose"):
         fields.pop(key, None)
     return sha256_text(f"v{SIM_URDF_VERSION}:{fields!r}")[:20]
+
+
+def safe_file_stem(name: str) -> str:
+    """``name`` reduced to letters, digits, '_' and '-' (at most 64): a file name that stays in its folder."""
+    stem = re.sub(r"[^A-Za-z0-9_-]", "_", name)[:64]
+    return stem or "robot"
+
+
+def prune_cache(folder: Path, keep: int = CACHE_MAX_FILES) -> None:
+    """Delete the least recently used files of ``folder`` beyond ``keep`` (the cache stays bounded)."""
+    try:
+        files = sorted((p for p in folder.iterdir() if p.is_file()), key=lambda p: p.stat().st_mtime, reverse=True)
+    except OSError:
+        return
+    for old in files[keep:]:
+        try:
+            old.unlink()
+        except OSError:
+            pass
 
 
 @lru_cache(maxsize=256)
@@ -215,12 +412,15 @@ def sim_robot_file(spec: RobotSpec) -> SimRobotFile:
     source_sha = sha256_file(spec.urdf_path) if Path(spec.urdf_path).is_file() else ""
     if not source_sha:
         raise RobotFileError(f"{spec.urdf_path}: no such URDF file (robot {spec.name!r})")
-    path = cache_dir() / "sim_urdf" / f"{spec.name}-{_spec_key(spec, source_sha)}.urdf"
+    folder = cache_dir() / "sim_urdf"
+    path = folder / f"{safe_file_stem(spec.name)}-{_spec_key(spec, source_sha)}.urdf"
     if path.is_file():
         tree = parse_urdf(path)
+        path.touch()
     else:
         tree = build_sim_tree(spec)
         atomic_write_text(path, write_urdf(tree))
+        prune_cache(folder)
     parents = tuple((name, (tree.parent_joint(name).parent if tree.parent_joint(name) else None)) for name in tree.links)
     return SimRobotFile(
         path=path.resolve(),
@@ -249,7 +449,10 @@ def self_collision_exclusions(spec: RobotSpec) -> tuple[tuple[str, str], ...]:
     mj.compiler.fusestatic = False
     mj.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
     mj.worldbody.first_body().add_freejoint()
-    model = mj.compile()
+    try:
+        model = mj.compile()
+    except ValueError as exc:
+        raise RobotFileError(f"{spec.urdf_path}: MuJoCo cannot compile its simulation URDF ({str(exc).splitlines()[0]})") from None
     data = mujoco.MjData(model)
     pairs = set()
     for pose in (spec.default_pose, np.zeros(spec.n_joints)):

@@ -69,6 +69,11 @@ class RobotSpec:
             unlisted links get ``"box"``.
         joint_limit_overrides: (joint, lower, upper) for joints whose file gives
             no usable limits (e.g. Aliengo's ``continuous`` thighs).
+        trim_shins: cut the boxes of each foot's parent link back to the foot
+            centre (robots given by path, whose shin meshes often include the
+            foot; see `frbench.robots.sim_urdf`).
+        root_rotation: 9 numbers, row-major R turning the root link frame
+            (new = R · old; e.g. a y-up file made z-up), or () for none.
         source: where the model file comes from.
         license: its licence.
         notes: free text shown by ``frbench robots``.
@@ -92,6 +97,8 @@ class RobotSpec:
     physics_dt: float = 0.005
     collision_shapes: tuple[tuple[str, str], ...] = ()
     joint_limit_overrides: tuple[tuple[str, float, float], ...] = ()
+    trim_shins: bool = False
+    root_rotation: tuple[float, ...] = ()
     source: str = ""
     license: str = ""
     notes: str = ""

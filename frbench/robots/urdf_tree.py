@@ -275,10 +275,26 @@ def parse_urdf(path: str | Path, text: str | None = None) -> UrdfTree:
         joint = _parse_joint(element, label, links)
         joints[joint.name] = joint
     tree = UrdfTree(path=path, name=root.get("name") or path.stem, links=links, joints=joints)
-    children = [j.child for j in joints.values()]
-    if len(set(children)) != len(children):
-        raise RobotFileError(f"{label}: a link has two parent joints; a URDF must be a tree")
-    roots = [n for n in links if n not in set(children)]
+    parent_of: dict[str, str] = {}
+    for joint in joints.values():
+        if joint.child in parent_of:
+            raise RobotFileError(
+                f"{label}: link {joint.child!r} has two parent joints ({parent_of[joint.child]!r} and {joint.name!r}); "
+                "a URDF must be a tree: remove one of them"
+            )
+        parent_of[joint.child] = joint.name
+    for start in links:  # a loop: following parents from a link comes back to it
+        seen, link = [start], start
+        while link in parent_of:
+            link = joints[parent_of[link]].parent
+            if link == start:
+                raise RobotFileError(
+                    f"{label}: joints form a loop through link {start!r} ({' -> '.join(seen)} -> {start}); a URDF must be a tree"
+                )
+            if link in seen:
+                break
+            seen.append(link)
+    roots = [n for n in links if n not in parent_of]
     if len(roots) != 1:
         raise RobotFileError(f"{label}: {len(roots)} root links ({', '.join(roots)}), expected exactly one")
     return tree
@@ -329,6 +345,27 @@ def merge_fixed_joints(tree: UrdfTree, keep_links: set[str]) -> UrdfTree:
             grandchild.origin = joint.origin @ grandchild.origin
         del tree.joints[joint.name]
         del tree.links[child.name]
+
+
+def rotate_root(tree: UrdfTree, rotation) -> UrdfTree:
+    """A copy of ``tree`` whose root link frame is turned by ``rotation`` (3, 3): new = R · old.
+
+    The root's inertial, collisions and child joints are re-expressed, so the
+    robot is unchanged but its root frame axes are R's rows (e.g. a y-up file made z-up).
+    """
+    rot = np.asarray(rotation, dtype=float).reshape(3, 3)
+    if np.allclose(rot, np.eye(3)):
+        return tree
+    tree = tree.copy()
+    turn = np.eye(4)
+    turn[:3, :3] = rot
+    root = tree.links[tree.root]
+    root.com = rot @ root.com
+    root.inertia = rot @ root.inertia @ rot.T
+    root.collisions = [dataclasses.replace(c, origin=turn @ c.origin) for c in root.collisions]
+    for joint in tree.child_joints(root.name):
+        joint.origin = turn @ joint.origin
+    return tree
 
 
 # --------------------------------------------------------------------------- writing
