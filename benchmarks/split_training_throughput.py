@@ -18,11 +18,8 @@ import argparse
 import torch
 from common import timed
 
-from frbench.training.env import (
-    RecoveryTrainingEnv,
-    TrainEnvConfig,
-    humanoid_reward_config,
-)
+from frbench.training.env import RecoveryTrainingEnv, TrainEnvConfig
+from frbench.training.rewards import humanoid_reward_config
 
 
 def env_rate(backend: str, envs: int, seconds: float) -> float:

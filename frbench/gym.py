@@ -66,13 +66,12 @@ REWARD_PRESETS = ("training", "paper")
 def reward_config(reward, kind: str):
     """The `RewardConfig` of preset ``reward`` (``"training"``: the trainer's table for robots of ``kind``;
     ``"paper"``: the paper's) or ``reward`` itself if it is one."""
-    from frbench.training.env import humanoid_reward_config, training_reward_config
-    from frbench.training.rewards import RewardConfig
+    from frbench.training.rewards import RewardConfig, reward_table
 
     if isinstance(reward, RewardConfig):
         return reward
     if reward == "training":
-        return humanoid_reward_config() if kind == "humanoid" else training_reward_config()
+        return reward_table(kind)
     if reward == "paper":
         return RewardConfig()
     raise ValueError(f"reward={reward!r}: expected one of {', '.join(REWARD_PRESETS)} or a RewardConfig")
@@ -151,7 +150,7 @@ class FallRecoveryVectorEnv(VectorEnv):
 
         from frbench.robots import ground_truth
         from frbench.terrains import height_at
-        from frbench.training.env import HEAD_FRAME, HEAD_OFFSET_M
+        from frbench.training.population import HEAD_FRAME, HEAD_OFFSET_M
 
         if self._head is None:
             robot = ground_truth.load(self.spec_robot)
@@ -210,7 +209,7 @@ class FallRecoveryVectorEnv(VectorEnv):
         import pinocchio
 
         from frbench.robots import ground_truth
-        from frbench.training.env import HEAD_FRAME, HEAD_OFFSET_M
+        from frbench.training.population import HEAD_FRAME, HEAD_OFFSET_M
 
         robot = ground_truth.load(self.spec_robot)
         data = robot.model.createData()

@@ -52,11 +52,10 @@ from frbench.training.observation_groups import observation_groups
 from frbench.training.population import TrainingRobots, yaw_of
 from frbench.training.residual import DirectTargets, ResidualController
 from frbench.training.rewards import RewardInputs, compute_rewards, with_joint_velocity_limits
-from frbench.training.rewards import humanoid_reward_config  # noqa: F401  (benchmarks/split_training_throughput.py)
 from frbench.training.start_sources import DemoStarts, RiseStarts
 from frbench.training.terrain_grid import build_grid
 
-__all__ = ["RecoveryTrainingEnv", "TrainEnvConfig", "humanoid_reward_config"]
+__all__ = ["RecoveryTrainingEnv", "TrainEnvConfig"]
 
 
 class RecoveryTrainingEnv(VecEnv):
