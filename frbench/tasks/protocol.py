@@ -8,9 +8,9 @@ Every results file records it; the leaderboard refuses unknown versions.
 from __future__ import annotations
 
 #: The protocol this code implements.
-PROTOCOL_VERSION = "1.0"
+PROTOCOL_VERSION = "1.1"
 #: Every protocol version whose results the leaderboard accepts.
-KNOWN_PROTOCOL_VERSIONS = ("1.0",)
+KNOWN_PROTOCOL_VERSIONS = ("1.0", "1.1")
 #: Version of the results JSON layout written by ``frbench evaluate``.
 RESULTS_SCHEMA_VERSION = 1
 

@@ -21,7 +21,8 @@ from frbench.robots.spec import RobotSpec
 from frbench.tasks.initial_states import SETTLE_GAIN_SCALE, SETTLE_SECONDS, FallenStarts
 from frbench.tasks.observations import projected_gravity, proprioception
 from frbench.tasks.protocol import EPISODE_SECONDS
-from frbench.tasks.success import EpisodeMetrics, StepSignals, SuccessTracker
+from frbench.tasks.start_screening import screen_starts
+from frbench.tasks.success import EpisodeMetrics, StartSurface, StepSignals, SuccessTracker, torso_frame
 
 EPISODE_STEPS = int(round(EPISODE_SECONDS / CONTROL_DT))
 SETTLE_STEPS = int(round(SETTLE_SECONDS / CONTROL_DT))
@@ -50,6 +51,7 @@ class RecoveryTask:
         self.lower, self.upper = np.asarray(spec.joint_lower), np.asarray(spec.joint_upper)
         self.default_pose = np.asarray(spec.default_pose)
         self.nominal = PhysicsParams.nominal(spec, num_envs)
+        self.torso = torso_frame(spec)
         self.t = 0
 
     def close(self) -> None:
@@ -61,8 +63,8 @@ class RecoveryTask:
 
         return base_pos[:, 2] - height_at(self.terrain, base_pos[:, :2])
 
-    def reset(self, starts: FallenStarts) -> dict[str, np.ndarray]:
-        """Place and settle the starts (one per environment); return the first observation."""
+    def settle(self, starts: FallenStarts) -> None:
+        """Place the starts (one per environment) and settle them with the joints held softly."""
         n = self.num_envs
         soft = PhysicsParams.nominal(self.spec, n)
         soft.kp, soft.kd = soft.kp * SETTLE_GAIN_SCALE, soft.kd * SETTLE_GAIN_SCALE
@@ -73,12 +75,36 @@ class RecoveryTask:
         self.backend.set_params(self.nominal)
         self.state = self.backend.state()
         self.start_xy = self.state.base_pos[:, :2].copy()
+        self.start_surface = StartSurface(self.terrain, self.start_xy)
+
+    def settled_upright(self) -> np.ndarray:
+        """(N,) whether each settled start already lies within the success test's upright bound."""
+        tracker = SuccessTracker(self.num_envs, self.spec.kind, self.spec.nominal_height)
+        return tracker.up_pose(self._signals(self.backend.contacts()))
+
+    def reset(self, starts: FallenStarts) -> dict[str, np.ndarray]:
+        """Place and settle the starts, redrawing those already upright (`screen_starts`); the first observation."""
+        n = self.num_envs
+        self.settle(starts)
+        self.starts = screen_starts(self, starts)
         self.previous_action = np.tile(self.default_pose, (n, 1))
         self.success = SuccessTracker(n, self.spec.kind, self.spec.nominal_height)
         self.metrics = EpisodeMetrics(n, self.spec.n_joints)
         self.settle_diverged = self.backend.diverged.copy()
         self.t = 0
         return self.observation()
+
+    def _signals(self, contacts) -> StepSignals:
+        """What the success test reads in the current state."""
+        s = self.state
+        return StepSignals(
+            gravity_z=projected_gravity(s.base_quat)[:, 2],
+            height=self._height_above_terrain(s.base_pos),
+            body_contact=contacts.group_contact.any(axis=1),
+            displacement=np.linalg.norm(s.base_pos[:, :2] - self.start_xy, axis=1),
+            surface_drop=self.start_surface.drop(s.base_pos[:, :2]),
+            torso_gravity_z=self.torso.gravity_z(s.base_quat, s.q) if self.torso else None,
+        )
 
     def observation(self) -> dict[str, np.ndarray]:
         """The policy's proprioception (see `frbench.tasks.observations`)."""
@@ -92,17 +118,11 @@ class RecoveryTask:
         self.state = self.backend.state()
         self.contacts = contacts = self.backend.contacts()
         diverged = self.backend.diverged | self.settle_diverged
-        displacement = np.linalg.norm(self.state.base_pos[:, :2] - self.start_xy, axis=1)
-        self.signals = signals = StepSignals(
-            gravity_z=projected_gravity(self.state.base_quat)[:, 2],
-            height=self._height_above_terrain(self.state.base_pos),
-            body_contact=contacts.group_contact.any(axis=1),
-            displacement=displacement,
-        )
+        self.signals = signals = self._signals(contacts)
         self.success.update(signals, alive=~diverged)
         self.metrics.update(
             self.state.q, self.state.qd, self.state.tau, self.state.base_angvel[:, 0],
-            contacts.body_force_max, displacement, diverged,
+            contacts.body_force_max, signals.displacement, diverged,
         )
         self.t += 1
         return self.observation()
