@@ -63,7 +63,7 @@ def run(args) -> int:
         run_grid,
         validate,
     )
-    from frbench.evaluation.results import initial_pose_table, results_table
+    from frbench.evaluation.results import aggregate_table, initial_pose_table, results_table
     from frbench.io import atomic_write_text
 
     request = EvaluationRequest(
@@ -84,6 +84,7 @@ def run(args) -> int:
         episodes = run_grid(request, progress=lambda cell: bar.update(1))
     results = build_results(request, policy, episodes)
     print(results_table(results["summary"], results["sim_to_sim"]))
+    print("\nMean cell success with its stratified-bootstrap 95 % interval:\n" + aggregate_table(results["cells"]))
     print("\nSuccess by initial pose:\n" + initial_pose_table(episodes))
     atomic_write_text(out, json.dumps(results, indent=1) + "\n")
     total = sum(c["successes"] for c in results["cells"])

@@ -95,7 +95,7 @@ _PARAMETERS: dict[str, tuple[LevelParameter, ...]] = {
     ),
     "slopes": (_P("slope_deg", 4.0, 40.0, "incline angle", digits=1),),
     "stairs": (
-        _P("step_height_m", 0.05, 0.25, "rise of every step"),
+        _P("step_height_m", 0.02, 0.25, "rise of every step"),
         _P("tread_m", 0.31, 0.31, "run of every step"),
         _P(
             "stair_angle_deg", 0.0, 0.0, "atan(step_height / tread)", digits=1,
