@@ -486,12 +486,14 @@ def test_table_ranks_main_records_and_lists_partial_ones(populated, capsys):
     status, out, _ = cli(capsys, "leaderboard", "--root", populated)
     assert status == 0
     lines = out.splitlines()
-    assert lines[0] == "Main board: records covering the standard grid, ranked by mean success (2 records)"
-    assert lines[2].split()[:3] == ["1", "ppo-best", "ppo"]
-    assert lines[3].split()[:3] == ["2", "baseline", "scripted"]
-    tiny = next(line for line in lines if " tiny " in line).split()
-    assert tiny[4:7] == ["0.563", "0.813", "-"]  # ties round up, as in the page  # overall, flat, rough
-    assert "Partial records (not ranked against the main board) (1 record)" in lines
+    assert lines[0] == ("Main board, protocol 1.1: records covering the standard grid, ranked by mean success "
+                        "(~: its 95 % interval overlaps the record above) (2 records)")
+    assert lines[2].split()[:4] == ["1", "ppo-best", "ppo", "1.1"]
+    assert lines[3].split()[:4] == ["2", "baseline", "scripted", "1.1"]
+    tiny = next(line for line in lines if line.startswith("tiny ")).split()
+    assert tiny[3] == "0.563" and tiny[5] == "0.813" and tiny[7] == "-"  # ties round up, as in the page; overall, flat, rough
+    assert tiny[4].startswith("(") and tiny[4].endswith(")")  # the interval beside the score
+    assert "Partial records, protocol 1.1 (not ranked against the main board) (1 record)" in lines
 
 
 def test_json_output_and_filters(populated, capsys):
