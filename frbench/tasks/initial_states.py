@@ -62,10 +62,11 @@ class FallenStarts:
     attempts: np.ndarray | None = None
 
 
-def episode_rng(robot: str, family: str, level: int, seed: int, episode: int, attempt: int = 0) -> np.random.Generator:
+def episode_rng(robot: str, family: str, level: int, seed: int, episode: int, attempt: int = 0,
+                protocol_version: str = PROTOCOL_VERSION) -> np.random.Generator:
     """The generator of one episode's start: a pure function of the protocol version, the cell and the
     draw attempt (0 for the first draw; `frbench.tasks.start_screening` redraws with 1, 2, ...)."""
-    key = f"{PROTOCOL_VERSION}|{robot}|{family}|{int(level)}|{int(seed)}|{int(episode)}"
+    key = f"{protocol_version}|{robot}|{family}|{int(level)}|{int(seed)}|{int(episode)}"
     if attempt:
         key += f"|redraw {int(attempt)}"
     words = np.frombuffer(hashlib.sha256(key.encode()).digest(), dtype=np.uint32)
@@ -189,10 +190,13 @@ def draw_start(spec: RobotSpec, terrain, rng: np.random.Generator) -> tuple[np.n
     return np.array([x, y, z]), quat, q, kind
 
 
-def draw_starts(spec: RobotSpec, terrain, family: str, level: int, seed: int, episodes) -> FallenStarts:
-    """The starts of ``episodes`` (indices) in one (robot, terrain, level, seed) cell."""
+def draw_starts(spec: RobotSpec, terrain, family: str, level: int, seed: int, episodes,
+                protocol_version: str = PROTOCOL_VERSION) -> FallenStarts:
+    """The starts of ``episodes`` (indices) in one (robot, terrain, level, seed) cell (an earlier
+    ``protocol_version`` re-draws that version's first draws, e.g. to compare success rules on them)."""
     episodes = list(episodes)
-    rows = [draw_start(spec, terrain, episode_rng(spec.name, family, level, seed, e)) for e in episodes]
+    rows = [draw_start(spec, terrain, episode_rng(spec.name, family, level, seed, e, protocol_version=protocol_version))
+            for e in episodes]
     return FallenStarts(
         base_pos=np.array([r[0] for r in rows]),
         base_quat=np.array([r[1] for r in rows]),
