@@ -6,11 +6,12 @@
 * An aggregate over cells (per family, robot, backend, overall, the sim-to-sim gap) gets a 95 %
   percentile interval from a *stratified bootstrap*, the procedure of rliable (Agarwal et al. 2021,
   "Deep Reinforcement Learning at the Edge of the Statistical Precipice", NeurIPS; rliable's
-  ``StratifiedBootstrap`` resamples runs within each task). Here a stratum ("task") is one
-  (robot, backend, terrain, level); each replicate resamples, within every stratum, its seed cells with
-  replacement and then each drawn cell's episodes with replacement (a binomial draw with the cell's
-  success rate), and recomputes the statistic from the resampled cell rates. rliable itself is not used:
-  it takes a runs × tasks score matrix and has no second (episode) level.
+  ``StratifiedBootstrap`` resamples the runs of each task independently, keeping the tasks fixed). Here
+  the strata ("tasks") are the grid's cells (robot, backend, terrain, level, seed: the protocol fixes
+  each cell's terrain instance and starts) and the "runs" are a cell's episodes: each replicate resamples
+  every cell's episodes with replacement (a binomial draw with the cell's success rate) and recomputes
+  the statistic from the resampled cell rates. rliable itself is not used: it wants a dense runs × tasks
+  score matrix, while this needs only each cell's counts and runs in a few milliseconds.
 
 Everything is deterministic: the generator is seeded (`BOOTSTRAP_SEED`) and cells are sorted by key first.
 """
@@ -27,8 +28,7 @@ Z95 = 1.959963984540054
 #: Bootstrap replicates and the generator's seed.
 BOOTSTRAP_REPLICATES = 2000
 BOOTSTRAP_SEED = 20210
-STRATUM_KEYS = ("robot", "backend", "terrain", "level")
-CELL_KEYS = (*STRATUM_KEYS, "seed")
+CELL_KEYS = ("robot", "backend", "terrain", "level", "seed")
 
 
 def wilson_interval(successes: int, episodes: int, z: float = Z95) -> tuple[float, float]:
@@ -50,25 +50,13 @@ def sorted_cells(cells: Sequence[Mapping]) -> list[Mapping]:
 
 def bootstrap_rates(cells: Sequence[Mapping], replicates: int = BOOTSTRAP_REPLICATES,
                     seed: int = BOOTSTRAP_SEED) -> np.ndarray:
-    """Resampled cell success rates, shape (replicates, len(cells)), columns in ``sorted_cells`` order.
-
-    Column j of a replicate is a cell drawn with replacement among the cells of cell j's stratum, whose
-    episodes are then drawn with replacement (the module docstring).
-    """
+    """Resampled cell success rates, shape (replicates, len(cells)), columns in ``sorted_cells`` order:
+    each cell's episodes drawn with replacement (the module docstring)."""
     cells = sorted_cells(cells)
     rng = np.random.default_rng(seed)
-    out = np.empty((replicates, len(cells)))
-    strata: dict[tuple, list[int]] = {}
-    for j, cell in enumerate(cells):
-        strata.setdefault(tuple(cell[k] for k in STRATUM_KEYS), []).append(j)
     successes = np.array([c["successes"] for c in cells], dtype=float)
     episodes = np.array([c["episodes"] for c in cells], dtype=int)
-    for columns in strata.values():
-        columns = np.array(columns)
-        drawn = columns[rng.integers(0, len(columns), size=(replicates, len(columns)))]
-        n = episodes[drawn]
-        out[:, columns] = rng.binomial(n, successes[drawn] / n) / n
-    return out
+    return rng.binomial(episodes, successes / episodes, size=(replicates, len(cells))) / episodes
 
 
 def percentile_interval(replicates: np.ndarray, successes: int | None = None,
