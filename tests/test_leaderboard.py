@@ -672,7 +672,8 @@ def test_records_of_another_protocol_version_are_archived_not_ranked(tmp_path, c
     data = json.loads(out)
     assert status == 0 and data["protocol_version"] == "1.1"
     assert [r["name"] for r in data["main"]] == ["current"] and data["main"][0]["rank"] == 1
-    assert [r["name"] for r in data["archived"]] == ["old-but-better"] and "rank" not in data["archived"][0]
+    assert [r["name"] for r in data["archived"]] == ["old-but-better"]
+    assert data["archived"][0]["rank"] == 1 and data["archived"][0]["protocol_version"] == "1.0"  # within 1.0 only
     low, high = data["main"][0]["intervals"]["overall"]
     assert low < data["main"][0]["scores"]["overall"] < high
     readme = (root / "README.md").read_text()

@@ -204,9 +204,13 @@ PAGE_SCRIPT = r"""
       if (a.r.protocol_version !== b.r.protocol_version) { return a.r.protocol_version < b.r.protocol_version ? -1 : 1; }
       return rankCompare(a, b);
     });
+    var previous = null;
     list.forEach(function (row, i) {
       row.rank = i + 1;
-      row.tied = section === "main" && i > 0 && overlaps(row.iv && row.iv.overall, list[i - 1].iv && list[i - 1].iv.overall);
+      var ranked = section === "main" || (section === "archived" && row.r.track === "main");
+      var same = previous && previous.r.protocol_version === row.r.protocol_version;
+      row.tied = ranked && !!same && overlaps(row.iv && row.iv.overall, previous.iv && previous.iv.overall);
+      if (ranked) { previous = row; }
     });
     return list;
   }

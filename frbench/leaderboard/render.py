@@ -94,7 +94,7 @@ def board(records: Sequence[Mapping], *, robot: str | None = None, backend: str 
     """Rows of every section, scored on the cells matching the filters, each score with its 95 % interval.
 
     ``main`` and ``partial``: records of the current protocol version (main ranked); ``archived``: records of
-    other versions, sorted the same way within each version but never ranked against the current ones.
+    other versions, main-track ones ranked within their own version only, never against the current ones.
     Records without cells matching the filters are left out.
     """
     sections: dict[str, list[dict]] = {"main": [], "partial": [], "archived": []}
@@ -111,8 +111,11 @@ def board(records: Sequence[Mapping], *, robot: str | None = None, backend: str 
         })
     _rank(sections["main"])
     sections["partial"].sort(key=lambda row: rank_key(row["scores"], row["submitted"], row["id"]))
-    sections["archived"].sort(key=lambda row: (row["protocol_version"], row["track"] != "main",
-                                               rank_key(row["scores"], row["submitted"], row["id"])))
+    archived = sections["archived"]
+    for version in sorted({row["protocol_version"] for row in archived}):  # ranked within their own version only
+        _rank([row for row in archived if row["protocol_version"] == version and row["track"] == "main"])
+    archived.sort(key=lambda row: (row["protocol_version"], row["track"] != "main",
+                                   rank_key(row["scores"], row["submitted"], row["id"])))
     filters = {k: v for k, v in (("robot", robot), ("backend", backend), ("terrain", terrain)) if v is not None}
     return {"filters": filters, "protocol_version": PROTOCOL_VERSION, **sections}
 
@@ -154,7 +157,7 @@ def _columns(families: Sequence[str], backends: Sequence[str], ranked: bool) -> 
         interval = row["intervals"][key] if name is None else row["intervals"][key].get(name)
         return fmt_interval(value, interval)
 
-    columns = [("#", lambda r: str(r["rank"]) + ("~" if r["tied_above"] else ""))] if ranked else []
+    columns = [("#", lambda r: (str(r["rank"]) + ("~" if r["tied_above"] else "")) if "rank" in r else "-")] if ranked else []
     columns += [
         ("name", lambda r: r["name"]),
         ("policy", lambda r: r["policy"]),
@@ -175,7 +178,8 @@ SECTION_TITLES = {
     "main": "Main board, protocol {version}: records covering the standard grid, ranked by mean success "
             "(~: its 95 % interval overlaps the record above)",
     "partial": "Partial records, protocol {version} (not ranked against the main board)",
-    "archived": "Archived: records of earlier protocol versions (not ranked against protocol {version})",
+    "archived": "Archived: records of earlier protocol versions, ranked within their own version only "
+                "(never against protocol {version})",
 }
 
 
@@ -190,7 +194,7 @@ def render_table(records: Sequence[Mapping], **filters) -> str:
         out.append("filters: " + " ".join(f"{k}={v}" for k, v in data["filters"].items()))
     for section in ("main", "partial", "archived"):
         rows = data[section]
-        columns = _columns(families, shown["backends"], section == "main")
+        columns = _columns(families, shown["backends"], section != "partial")
         out.append(f"{SECTION_TITLES[section].format(version=PROTOCOL_VERSION)} ({len(rows)} record{'s' if len(rows) != 1 else ''})")
         if not rows:
             out.append("  (none)")
@@ -257,21 +261,21 @@ def render_markdown(records: Sequence[Mapping]) -> str:
     def table(rows: list[dict], ranked: bool, protocol: bool = False) -> list[str]:
         if not rows:
             return ["_No records yet._" if ranked else "_None._", ""]
-        head = (["#"] if ranked else []) + header[:3] + (["Protocol"] if protocol else []) + ([] if ranked else ["Cells"]) + header[3:]
+        head = (["#"] if ranked else []) + header[:3] + (["Protocol"] if protocol else []) + (["Cells"] if protocol or not ranked else []) + header[3:]
         out = [_md_row(head), _md_row(["---"] * len(head))]
         for row in rows:
             s, iv = row["scores"], row["intervals"]
             values = [md_escape(row["name"]), md_escape(row["policy"]), md_escape(row["submitter"])]
             if protocol:
                 values.append(md_escape(row["protocol_version"]))
-            if not ranked:
+            if protocol or not ranked:
                 values.append(str(s["cells"]))
             overall = fmt_interval(s["overall"], iv["overall"])
             values += [f"**{overall}**" if ranked else overall]
             values += [fmt_interval(s["per_family"].get(f), iv["per_family"].get(f)) for f in families]
             values += [fmt_interval(s["per_backend"].get(b), iv["per_backend"].get(b)) for b in backends]
             values += [fmt_gap(iv["signed_gap"]), f"[{row['id'][:12]}](records/{row['id']}.json)"]
-            rank = [str(row["rank"]) + (" ~" if row["tied_above"] else "")] if ranked else []
+            rank = [(str(row["rank"]) + (" ~" if row["tied_above"] else "")) if "rank" in row else "-"] if ranked else []
             out.append(_md_row(rank + values))
         return out + [""]
 
@@ -287,11 +291,12 @@ def render_markdown(records: Sequence[Mapping]) -> str:
     lines += [
         "## Archived records (earlier protocol versions)",
         "",
-        f"Records evaluated under an earlier protocol. Their numbers mean something else (docs/protocol.md lists",
-        f"what changed), so they are listed for the record only and never ranked against protocol {PROTOCOL_VERSION}.",
+        "Records evaluated under an earlier protocol. Their numbers mean something else (docs/protocol.md lists",
+        f"what changed), so they are never ranked against protocol {PROTOCOL_VERSION}; records that covered that",
+        "version's standard grid are ranked among themselves (`~`: interval overlaps the one above), the rest (`-`) not.",
         "",
     ]
-    lines += table(data["archived"], False, protocol=True)
+    lines += table(data["archived"], True, protocol=True)
     by_id = {r["id"]: r for r in records}
     rows = data["main"] + data["partial"] + data["archived"]
     lines += ["## Records", ""]
