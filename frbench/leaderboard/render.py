@@ -260,7 +260,7 @@ def render_markdown(records: Sequence[Mapping]) -> str:
 
     def table(rows: list[dict], ranked: bool, protocol: bool = False) -> list[str]:
         if not rows:
-            return ["_No records yet._" if ranked else "_None._", ""]
+            return ["_No records yet._" if ranked and not protocol else "_None._", ""]
         head = (["#"] if ranked else []) + header[:3] + (["Protocol"] if protocol else []) + (["Cells"] if protocol or not ranked else []) + header[3:]
         out = [_md_row(head), _md_row(["---"] * len(head))]
         for row in rows:

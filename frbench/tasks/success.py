@@ -162,6 +162,16 @@ class SuccessTracker:
             self.min_height = MIN_HEIGHT_FRACTION * np.asarray(nominal_height)
             self.max_tilt_deg = MAX_TILT_DEG
 
+    @property
+    def up_height(self) -> "float | np.ndarray":
+        """Humanoid: the pelvis height [m] that counts as standing (the key-frame search's objective reads it)."""
+        return self.min_height
+
+    @property
+    def floor_height(self) -> "float | np.ndarray":
+        """Humanoid: protocol 1.0's floor, 0.5 m scaled by nominal height / 0.78 m (the key-frame search's objective)."""
+        return 0.5 / HUMANOID_REFERENCE_HEIGHT * np.asarray(self.nominal_height)
+
     def up_pose(self, s: StepSignals) -> np.ndarray:
         """(N,) the tilt, height and surface conditions (body contact not considered): the *upright bound*."""
         cos_bound = np.cos(np.radians(self.max_tilt_deg))
