@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Callable, Sequence
 
 from frbench.tasks.protocol import (
+    PROTOCOL_VERSION,
     STANDARD_BACKENDS,
     STANDARD_LEVELS,
     STANDARD_ROBOTS,
@@ -112,7 +113,7 @@ def make_results(
                     sim_to_sim.append({"robot": robot, "terrain": terrain, "level": level, "mujoco": m, "pybullet": p, "gap": m - p})
     return {
         "schema_version": 1,
-        "protocol_version": "1.0",
+        "protocol_version": PROTOCOL_VERSION,
         "frbench": {"version": "0.1.0", "git_commit": "0123456789abcdef0123456789abcdef01234567", "git_dirty": False},
         "versions": {"python": "3.11.7", "mujoco": "4.0.0", "pybullet": "3.2.7", "pinocchio": "4.1.0",
                      "numpy": "2.4.6", "torch": "2.13.0+cpu"},

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from frbench.backends import make_backend
+from frbench.tasks.protocol import PROTOCOL_VERSION
 from frbench.backends.base import RobotState
 from frbench.cli import main
 from frbench.errors import PolicyError
@@ -127,7 +128,7 @@ def test_evaluate_writes_consistent_results(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "gap (mj-pb)" in printed and f"Results written to {out}" in printed
     results = json.loads(out.read_text())
-    assert results["schema_version"] == 1 and results["protocol_version"] == "1.0"
+    assert results["schema_version"] == 1 and results["protocol_version"] == PROTOCOL_VERSION
     assert len(results["cells"]) == 2 * 2 * 2 and len(results["episodes"]) == 16
     assert len(results["robots"]["go2"]["urdf_sha256"]) == 64
     assert set(results["versions"]) >= {"python", "mujoco", "pybullet", "pinocchio", "numpy", "torch"}

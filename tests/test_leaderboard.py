@@ -486,12 +486,14 @@ def test_table_ranks_main_records_and_lists_partial_ones(populated, capsys):
     status, out, _ = cli(capsys, "leaderboard", "--root", populated)
     assert status == 0
     lines = out.splitlines()
-    assert lines[0] == "Main board: records covering the standard grid, ranked by mean success (2 records)"
-    assert lines[2].split()[:3] == ["1", "ppo-best", "ppo"]
-    assert lines[3].split()[:3] == ["2", "baseline", "scripted"]
-    tiny = next(line for line in lines if " tiny " in line).split()
-    assert tiny[4:7] == ["0.563", "0.813", "-"]  # ties round up, as in the page  # overall, flat, rough
-    assert "Partial records (not ranked against the main board) (1 record)" in lines
+    assert lines[0] == ("Main board, protocol 1.1: records covering the standard grid, ranked by mean success "
+                        "(~: its 95 % interval overlaps the record above) (2 records)")
+    assert lines[2].split()[:4] == ["1", "ppo-best", "ppo", "1.1"]
+    assert lines[3].split()[:4] == ["2", "baseline", "scripted", "1.1"]
+    tiny = next(line for line in lines if line.startswith("tiny ")).split()
+    assert tiny[3] == "0.563" and tiny[5] == "0.813" and tiny[7] == "-"  # ties round up, as in the page; overall, flat, rough
+    assert tiny[4].startswith("(") and tiny[4].endswith(")")  # the interval beside the score
+    assert "Partial records, protocol 1.1 (not ranked against the main board) (1 record)" in lines
 
 
 def test_json_output_and_filters(populated, capsys):
@@ -554,9 +556,9 @@ def test_check_reports_stale_and_invalid_files(populated, capsys):
     record.write_text(original.replace('"description": ""', '"description": "<script>alert(1)</script>"', 1))
     status, _, err = cli(capsys, "leaderboard", "--check", "--root", populated)
     assert status == 1 and f"{record}: submission.description: '<script>" in err
-    record.write_text(original.replace('"protocol_version": "1.0"', '"protocol_version": "0.9"', 1))
+    record.write_text(original.replace('"protocol_version": "1.1"', '"protocol_version": "0.9"', 1))
     status, _, err = cli(capsys, "leaderboard", "--check", "--root", populated)
-    assert status == 1 and f"{record}: results.protocol_version: unknown protocol version '0.9'; known: 1.0" in err
+    assert status == 1 and f"{record}: results.protocol_version: unknown protocol version '0.9'; known: 1.0, 1.1" in err
     record.write_text(original.replace('"created": "2026-11-22T01:23:45Z"', '"created": "2026-11-22T01:23:46Z"', 1))
     status, _, err = cli(capsys, "leaderboard", "--check", "--root", populated)
     assert status == 1 and f"{record}: id: {record.stem} is not the sha256 of the record's results (" in err
@@ -655,3 +657,46 @@ def test_validator_messages():
         validate(_mutate(small_results(), _set("policy.sha256", 5)), "results-v1")
     with pytest.raises(ResultsError, match=re.escape("cells[0].success: ")):
         validate(_mutate(small_results(), _set("cells[0].success", True)), "results-v1")
+
+
+# --------------------------------------------------------------------------- protocol versions and intervals
+
+
+def test_records_of_another_protocol_version_are_archived_not_ranked(tmp_path, capsys):
+    root = empty_board_copy(REPO_BOARD, tmp_path / "leaderboard")
+    old = make_results(episodes=2, skill=0.95, salt=3)
+    old["protocol_version"] = "1.0"
+    lb.submit(write_results(tmp_path / "old.json", old), root, name="old-but-better")
+    lb.submit(write_results(tmp_path / "new.json", make_results(episodes=2, skill=0.5, salt=4)), root, name="current")
+    status, out, _ = cli(capsys, "leaderboard", "--root", root, "--format", "json")
+    data = json.loads(out)
+    assert status == 0 and data["protocol_version"] == "1.1"
+    assert [r["name"] for r in data["main"]] == ["current"] and data["main"][0]["rank"] == 1
+    assert [r["name"] for r in data["archived"]] == ["old-but-better"]
+    assert data["archived"][0]["rank"] == 1 and data["archived"][0]["protocol_version"] == "1.0"  # within 1.0 only
+    low, high = data["main"][0]["intervals"]["overall"]
+    assert low < data["main"][0]["scores"]["overall"] < high
+    readme = (root / "README.md").read_text()
+    assert "## Archived records (earlier protocol versions)" in readme and "| old-but-better | scripted | anonymous | 1.0 |" in readme
+
+
+def test_ranking_refuses_to_mix_protocol_versions():
+    from frbench.errors import FrbenchError
+    from frbench.leaderboard.scores import check_same_protocol
+
+    assert check_same_protocol(["1.1", "1.1"]) == "1.1"
+    with pytest.raises(FrbenchError, match="refusing to rank records of protocol versions 1.0, 1.1 together"):
+        check_same_protocol(["1.1", "1.0"])
+
+
+def test_neighbours_with_overlapping_intervals_are_marked(tmp_path, capsys):
+    root = empty_board_copy(REPO_BOARD, tmp_path / "leaderboard")
+    for name, skill, salt in (("a", 0.60, 5), ("b", 0.59, 6), ("c", 0.05, 7)):
+        lb.submit(write_results(tmp_path / f"{name}.json", make_results(episodes=2, skill=skill, salt=salt)), root, name=name)
+    data = json.loads(cli(capsys, "leaderboard", "--root", root, "--format", "json")[1])
+    marks = {r["name"]: r["tied_above"] for r in data["main"]}
+    order = [r["name"] for r in data["main"]]
+    assert order[2] == "c" and marks["c"] is False  # far below: its order is established
+    assert marks[order[1]] is True  # a and b: within each other's intervals
+    lines = cli(capsys, "leaderboard", "--root", root)[1].splitlines()
+    assert lines[3].split()[0] == "2~" and lines[4].split()[0] == "3"

@@ -143,8 +143,8 @@ def test_a_sit_up_that_tips_onto_a_side_starts_over_and_none_without_tries():
 def test_prone_episode_in_mujoco_through_the_evaluator():
     from frbench.evaluation.runner import Cell, run_cell
 
-    # seed 1, episode 0 of g1/flat/level 1 is a prone start
-    (record,) = run_cell(Cell("g1", "mujoco", "flat", 1, 1, 1), "scripted-humanoid")
+    # seed 13, episode 0 of g1/flat/level 1 is a prone start (protocol 1.1)
+    (record,) = run_cell(Cell("g1", "mujoco", "flat", 1, 13, 1), "scripted-humanoid")
     assert record["initial_pose"] == "prone"
     assert not record["diverged"]
     assert record["success"] is PRONE_EPISODE_SUCCESS
@@ -163,7 +163,8 @@ def _episode(backend, seed, episode):
 
     spec = get_robot("g1")
     terrain = make_terrain("flat", 1, seed)
-    starts = draw_starts(spec, terrain, "flat", 1, seed, [episode])
+    starts = draw_starts(spec, terrain, "flat", 1, seed, [episode], protocol_version="1.0")  # the measured starts
+    starts.cell = None  # protocol 1.0 had no start screening
     task = RecoveryTask(spec, backend, terrain, 1)
     policy = HumanoidScriptedPolicy()
     heights, phases = [], []

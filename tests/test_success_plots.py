@@ -10,8 +10,9 @@ from frbench.analysis.success_plots import load_results, markdown_table, plot_fa
 from frbench.errors import FrbenchError
 
 
-def _results(name: str, rates: dict) -> dict:
-    cells = [{"robot": robot, "backend": backend, "terrain": "flat", "level": 1, "seed": seed, "success_rate": rate}
+def _results(name: str, rates: dict, episodes: int = 4) -> dict:
+    cells = [{"robot": robot, "backend": backend, "terrain": "flat", "level": 1, "seed": seed, "success_rate": rate,
+              "successes": int(round(rate * episodes)), "episodes": episodes}
              for (robot, backend, seed), rate in rates.items()]
     return {"policy": {"name": name}, "cells": cells}
 
@@ -20,23 +21,26 @@ A = _results("a", {("go2", "mujoco", 0): 1.0, ("go2", "mujoco", 1): 0.5, ("go1",
                    ("go1", "mujoco", 1): 0.5})
 
 
-def test_per_robot_mean_and_std_over_seeds():
+def test_per_robot_pooled_rate_and_wilson_interval():
+    from frbench.evaluation.intervals import wilson_interval
+
     table = success_table([A], series="robot")
-    assert table[("go2", "mujoco", "flat", 1)] == (0.75, 0.25, 2)
-    assert table[("go1", "mujoco", "flat", 1)] == (0.25, 0.25, 2)
+    assert table[("go2", "mujoco", "flat", 1)] == (0.75, *wilson_interval(6, 8), 8)
+    assert table[("go1", "mujoco", "flat", 1)] == (0.25, *wilson_interval(2, 8), 8)
 
 
 def test_per_policy_averages_robots_within_a_seed_first():
     table = success_table([A, _results("b", {("go2", "mujoco", 0): 0.0})], series="policy")
-    # seed 0: (1 + 0)/2 = 0.5, seed 1: (0.5 + 0.5)/2 = 0.5 -> mean 0.5, std 0
-    assert table[("a", "mujoco", "flat", 1)] == (0.5, 0.0, 2)
-    assert table[("b", "mujoco", "flat", 1)] == (0.0, 0.0, 1)
+    # pooled over robots and seeds: 8 of 16; a single seed of 0/4 still gets an interval, not "0 ± 0"
+    assert table[("a", "mujoco", "flat", 1)][:2] == (0.5, pytest.approx(0.28, abs=0.01))
+    rate, low, high, n = table[("b", "mujoco", "flat", 1)]
+    assert (rate, low, n) == (0.0, 0.0, 4) and high == pytest.approx(0.49, abs=0.01)
 
 
 def test_table_and_figures(tmp_path):
     table = success_table([A])
     text = markdown_table(table)
-    assert "| go2 | flat | 75.0 ± 25.0 |" in text
+    assert "| go2 | flat | 75.0 (41–93) |" in text
     paths = plot_families(table, tmp_path)
     assert [p.name for p in paths] == ["success_flat.png"] and paths[0].stat().st_size > 5000
 

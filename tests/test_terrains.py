@@ -89,7 +89,7 @@ def test_terrain_pickles_without_its_cache():
 # --------------------------------------------------------------------------- parameters
 
 #: −1 where a smaller value is harder; every other parameter is non-decreasing.
-HARDER_WHEN_SMALLER = {"beam_width_m"}
+HARDER_WHEN_SMALLER = {"beam_width_m", "base_to_edge_min_m", "base_to_edge_max_m", "platform_min_m", "platform_max_m"}
 
 
 @pytest.mark.parametrize("family", FAMILIES)

@@ -45,7 +45,11 @@ from frbench.policies.keyframe_humanoid import (
 )
 from tools.keyframe_states import STATE_FIELDS, parse_seeds
 from frbench.tasks.initial_states import FALL_KINDS, FallenStarts, draw_starts
+
 from frbench.tasks.recovery import EPISODE_STEPS, RecoveryTask
+
+#: The key frames were searched on protocol 1.0's starts; the seeds in keyframe_humanoid_params.json name those.
+SEARCH_STARTS_PROTOCOL = "1.0"
 
 
 def parse_starts(text: str) -> list[tuple[int, int]]:
@@ -139,7 +143,7 @@ def starts_of_kind(seeds, kinds: tuple[str, ...], episodes: int = 8) -> list[tup
 
     spec, out = get_robot("g1"), []
     for seed in seeds:
-        drawn = draw_starts(spec, make_terrain("flat", 1, seed), "flat", 1, seed, range(episodes)).kinds
+        drawn = draw_starts(spec, make_terrain("flat", 1, seed), "flat", 1, seed, range(episodes), SEARCH_STARTS_PROTOCOL).kinds
         out += [(seed, e) for e, kind in enumerate(drawn) if kind in kinds]
     return out
 
@@ -161,7 +165,7 @@ class Evaluator:
 
         self.spec = get_robot("g1")
         self.popsize, self.n_starts = popsize, len(starts)
-        drawn = [draw_starts(self.spec, make_terrain("flat", 1, s), "flat", 1, s, [e]) for s, e in starts]
+        drawn = [draw_starts(self.spec, make_terrain("flat", 1, s), "flat", 1, s, [e], SEARCH_STARTS_PROTOCOL) for s, e in starts]
         self.kinds = [d.kinds[0] for d in drawn]
         # environment j = candidate (j // n_starts), start (j % n_starts)
         self.starts = FallenStarts(

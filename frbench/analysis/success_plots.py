@@ -1,10 +1,11 @@
 """Success against difficulty level, one figure per terrain family, from ``frbench evaluate`` results files.
 
 Each figure has one panel per backend; each line is one *series* — a robot
-(for one policy's results) or a policy (for a comparison of methods, the
-success averaged over the robots) — with the mean over evaluation seeds and a
-band of ± one standard deviation across seeds. The same numbers go into a
-Markdown table (`markdown_table`) for docs/results.md.
+(for one policy's results) or a policy (for a comparison of methods, pooled
+over the robots) — with the success rate over the pooled episodes of the
+evaluation seeds and its 95 % Wilson interval as a band (a standard deviation
+over 2-4 seeds of a few episodes says little, and nothing with one seed). The
+same numbers go into a Markdown table (`markdown_table`) for docs/results.md.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from frbench.errors import FrbenchError
+from frbench.evaluation.intervals import wilson_interval
 
 SERIES_KEYS = ("robot", "policy")
 
@@ -37,24 +39,18 @@ def load_results(paths: list[Path]) -> list[dict]:
 
 
 def success_table(results: list[dict], series: str = "robot") -> dict:
-    """{(series value, backend, terrain, level): (mean, std, n_seeds)} of the success rate.
-
-    ``series="robot"``: per robot (the seeds' rates); ``series="policy"``: per policy, each seed's rate
-    averaged over the robots first, so the std is across seeds as for one robot.
-    """
+    """{(series value, backend, terrain, level): (rate, low, high, episodes)}: the success rate over the pooled
+    episodes of the seeds (and, for ``series="policy"``, of the robots) with its 95 % Wilson interval."""
     if series not in SERIES_KEYS:
         raise FrbenchError(f"series {series!r}: expected one of {', '.join(SERIES_KEYS)}")
-    per_seed: dict[tuple, list[float]] = defaultdict(list)
+    counts: dict[tuple, list[int]] = defaultdict(lambda: [0, 0])
     for data in results:
         name = data["policy"]["name"]
         for cell in data["cells"]:
-            key = (cell["robot"] if series == "robot" else name, cell["backend"], cell["terrain"], cell["level"],
-                   cell["seed"])
-            per_seed[key].append(cell["success_rate"])
-    by_cell: dict[tuple, list[float]] = defaultdict(list)
-    for (label, backend, terrain, level, _seed), rates in per_seed.items():
-        by_cell[(label, backend, terrain, level)].append(float(np.mean(rates)))
-    return {key: (float(np.mean(v)), float(np.std(v)), len(v)) for key, v in by_cell.items()}
+            key = (cell["robot"] if series == "robot" else name, cell["backend"], cell["terrain"], cell["level"])
+            counts[key][0] += cell["successes"]
+            counts[key][1] += cell["episodes"]
+    return {key: (k / n, *wilson_interval(k, n), n) for key, (k, n) in counts.items()}
 
 
 def plot_families(table: dict, out_dir: Path, title: str = "") -> list[Path]:
@@ -78,15 +74,16 @@ def plot_families(table: dict, out_dir: Path, title: str = "") -> list[Path]:
                 if not points:
                     continue
                 levels = np.array([p[0] for p in points])
-                mean = np.array([p[1][0] for p in points]) * 100
-                std = np.array([p[1][1] for p in points]) * 100
-                ax.plot(levels, mean, marker="o", label=label)
-                ax.fill_between(levels, np.clip(mean - std, 0, 100), np.clip(mean + std, 0, 100), alpha=0.15)
+                rate = np.array([p[1][0] for p in points]) * 100
+                low = np.array([p[1][1] for p in points]) * 100
+                high = np.array([p[1][2] for p in points]) * 100
+                ax.plot(levels, rate, marker="o", label=label)
+                ax.fill_between(levels, low, high, alpha=0.15)
             ax.set_title(f"{terrain} — {backend}")
             ax.set_xlabel("level")
             ax.set_ylim(-2, 102)
             ax.grid(alpha=0.3)
-        axes[0][0].set_ylabel("success [%] (mean ± std over seeds)")
+        axes[0][0].set_ylabel("success [%] (95 % Wilson interval)")
         axes[0][-1].legend(fontsize=7, loc="best")
         if title:
             fig.suptitle(title, fontsize=9)
@@ -101,7 +98,7 @@ def plot_families(table: dict, out_dir: Path, title: str = "") -> list[Path]:
 
 
 def markdown_table(table: dict) -> str:
-    """Rows series × terrain, columns level × backend: "mean ± std" in percent."""
+    """Rows series × terrain, columns level × backend: "rate (low–high)" in percent, 95 % Wilson."""
     labels = sorted({k[0] for k in table})
     backends = sorted({k[1] for k in table})
     terrains = sorted({k[2] for k in table})
@@ -114,7 +111,7 @@ def markdown_table(table: dict) -> str:
             for level in levels:
                 for backend in backends:
                     value = table.get((label, backend, terrain, level))
-                    cells.append("" if value is None else f"{100 * value[0]:.1f} ± {100 * value[1]:.1f}")
+                    cells.append("" if value is None else f"{100 * value[0]:.1f} ({100 * value[1]:.0f}–{100 * value[2]:.0f})")
             if any(cells):
                 lines.append(f"| {label} | {terrain} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"

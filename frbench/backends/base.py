@@ -12,11 +12,13 @@ knows which simulator runs):
   ``q`` [rad], ``qd`` [rad/s], ``tau`` [N·m] (the torque applied at the last
   physics step).
 * Actuation, identical in every backend (`actuator_torque`): at every physics step
-  ``tau = motor_strength · clip(kp (q* − q) − kd qd, ±torque_limit) − f · tanh(qd / v_f)``,
-  the last term a smoothed Coulomb motor friction of ``motor_friction`` f [N·m]
-  (zero unless domain randomisation sets it; v_f = `MOTOR_FRICTION_VELOCITY`).
-  One control period is 0.02 s (50 Hz) = ``control_dt / physics_dt`` physics
-  steps; the physics step comes from the robot spec.
+  ``tau = motor_strength · clip(kp (q* − q) − kd qd, ±torque_limit) − f · clip(qd / v_f, ±1)``,
+  the last term a Coulomb motor friction of ``motor_friction`` f [N·m], linear
+  below v_f = `MOTOR_FRICTION_VELOCITY` (zero unless domain randomisation sets it).
+  Every term is explicit in the state at the start of the physics step: MuJoCo
+  computes it with native actuators (`frbench.backends.mujoco_model`), PyBullet
+  in numpy. One control period is 0.02 s (50 Hz) = ``control_dt / physics_dt``
+  physics steps; the physics step comes from the robot spec.
 * Contacts (`Contacts`) are read at the last physics step of a control
   period and include every contact acting on a link (terrain and self).
 * Friction: the robot's links have coefficient 1 and the terrain the
@@ -143,8 +145,9 @@ class PhysicsParams:
         )
 
 
-#: Joint speed [rad/s] over which the motor's Coulomb friction rises smoothly to its full value
-#: (tanh(q̇ / v_f); a sign() would chatter under explicit integration at rest).
+#: Joint speed [rad/s] below which the motor's Coulomb friction is linear in q̇ (f·clip(q̇ / v_f, ±1); a sign()
+#: would chatter under explicit integration at rest). The saturated line is what a MuJoCo actuator computes
+#: natively (affine bias, force range ±f); its slope at rest, f / v_f, is that of f·tanh(q̇ / v_f).
 MOTOR_FRICTION_VELOCITY = 0.1
 
 
@@ -157,7 +160,7 @@ def actuator_torque(params: PhysicsParams, limits: np.ndarray, targets: np.ndarr
     kp, kd, strength = params.kp[rows], params.kd[rows], params.motor_strength[rows]
     tau = strength * np.minimum(np.maximum(kp * (targets - q) - kd * qd, -limits), limits)
     if params.motor_friction is not None:
-        tau = tau - params.motor_friction[rows] * np.tanh(qd / MOTOR_FRICTION_VELOCITY)
+        tau = tau - params.motor_friction[rows] * np.clip(qd / MOTOR_FRICTION_VELOCITY, -1.0, 1.0)
     return tau
 
 
@@ -189,6 +192,10 @@ class Backend(Protocol):
 
     def mass_properties(self) -> tuple[np.ndarray, np.ndarray]:
         """(total robot mass [kg] (N,), whole-body CoM [m] (N, 3)) as the simulator holds them."""
+
+    def whole_body_com(self) -> np.ndarray:
+        """Whole-body centre of mass of every robot in the world [m] (N, 3), at the current state, in one
+        vectorised read (cheap enough for every control step)."""
 
     def set_base_force(self, force: np.ndarray) -> None:
         """Apply ``force`` [N] (N, 3, world frame) at each root link's centre of mass in every later physics

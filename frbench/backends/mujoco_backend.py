@@ -4,6 +4,17 @@ See :mod:`frbench.backends.base` for the conventions. MuJoCo's free joint
 already reports what frbench wants: root link frame position, quaternion
 w-first, linear velocity in the world frame and angular velocity in the body
 frame, so the conversion here is only index bookkeeping.
+
+The actuation is MuJoCo's own (native PD and motor-friction actuators, see
+`frbench.backends.mujoco_model`), so one control period is ONE
+``Batch.step(nstep=substeps)`` call: one dispatch to the thread pool instead
+of one per physics step. Every per-simulation parameter (gains, strength,
+motor friction, terrain friction, payload, and the morphology variants' masses,
+inertias, dimensions) is an expanded model field of one batch
+(``Batch.expand``), so nothing is recompiled when they change. Each call also
+computes the position and velocity stages at the new state (free for a
+persistent batch), so derived fields such as ``subtree_com`` describe the state
+the caller reads.
 """
 
 from __future__ import annotations
@@ -16,10 +27,10 @@ from mujoco import batch as mjbatch
 
 from frbench.backends.base import (
     CONTROL_DT,
+    MOTOR_FRICTION_VELOCITY,
     Contacts,
     PhysicsParams,
     RobotState,
-    actuator_torque,
     check_base_force,
     check_targets,
     divergence_mask,
@@ -49,9 +60,10 @@ class MujocoBackend:
         ``variants``: optional (specs, assignment, frictions, payloads) for
         morphology randomisation — robots with the same links and joints as
         ``spec`` (other dimensions and masses); simulation i runs
-        ``specs[assignment[i]]``, whose compiled model also fixes its terrain
-        friction and root payload [kg] (``set_params`` then changes gains and
-        motor strength only; MuJoCo cannot expand fields of caller models).
+        ``specs[assignment[i]]`` with its terrain friction and root payload [kg]
+        (``set_params`` then changes gains, strength and motor friction only).
+        Each variant is compiled once and the model fields in which it differs
+        from ``spec``'s model are written into the batch's expanded fields.
         """
         from frbench.terrains import make_terrain
 
@@ -62,39 +74,58 @@ class MujocoBackend:
         self.physics_dt = float(self.model.opt.timestep)
         self.substeps = int(round(CONTROL_DT / self.physics_dt))
         self.batch = mjbatch.Batch(self.model, self.num_envs, nthread or default_threads(), persistent=True)
-        self.variant_models = None
-        if variants is not None:
-            specs, assignment, frictions, payloads = variants
-            self.variant_models = []
-            for variant, friction, payload in zip(specs, frictions, payloads):
-                model = build_model(variant, self.terrain, friction=float(friction))
-                model.body_mass[model.body(sim_robot_file(variant).links[0]).id] += payload
-                self.variant_models.append(model)
-            self.batch.set_models([self.variant_models[k] for k in np.asarray(assignment)])
         self._qadr, self._dadr = joint_addresses(self.model, spec)
         self.link_names = sim_robot_file(spec).links
         self._link_body = np.array([self.model.body(name).id for name in self.link_names])
+        self._root_body = self._link_body[0]
+        self._base_mass = float(self.model.body_mass[self._root_body])
+        self.has_variants = variants is not None
+        if variants is not None:
+            specs, assignment, frictions, payloads = variants
+            models = []
+            for variant, friction, payload in zip(specs, frictions, payloads):
+                model = build_model(variant, self.terrain, friction=float(friction))
+                model.body_mass[model.body(sim_robot_file(variant).links[0]).id] += payload
+                models.append(model)
+            expand_variants(self.batch, self.model, models, np.asarray(assignment))
         self._qpos = self.batch.bind("qpos")
         self._qvel = self.batch.bind("qvel")
         self._ctrl = self.batch.bind("ctrl")
         self._cfrc_ext = self.batch.bind("cfrc_ext")
+        self._qfrc_actuator = self.batch.bind("qfrc_actuator")
+        self._subtree_com = self.batch.bind("subtree_com")
         self._xfrc_applied = self.batch.bind("xfrc_applied")
+        self._gain = self.batch.expand("actuator_gainprm")
+        self._bias = self.batch.expand("actuator_biasprm")
+        self._force_range = self.batch.expand("actuator_forcerange")
         self._base_force = np.zeros((self.num_envs, 3))
         self._terrain_geoms = np.array(
             [g for g in range(self.model.ngeom) if self.model.geom_bodyid[g] == 0], dtype=int
         )
-        self._root_body = self._link_body[0]
-        self._base_mass = float(self.model.body_mass[self._root_body])
         self._limits = np.asarray(spec.torque_limits)
         self._tau = np.zeros((self.num_envs, spec.n_joints))
         self.diverged = np.zeros(self.num_envs, dtype=bool)
-        self.params = PhysicsParams.nominal(spec, self.num_envs)
+        self.set_params(PhysicsParams.nominal(spec, self.num_envs))
 
     # ------------------------------------------------------------------ params
     def set_params(self, params: PhysicsParams) -> None:
-        """Per-simulation gains, motor strength, terrain friction and payload."""
+        """Per-simulation gains, motor strength and motor friction (the actuators' expanded fields), terrain
+        friction and payload (without variants: theirs are compiled in)."""
+        j = self.spec.n_joints
+        strength = np.asarray(params.motor_strength, dtype=float)
+        if np.any(strength < 0):
+            raise ValueError("motor_strength: expected values >= 0 (the strength scales the PD's force range)")
+        self._gain[:, :j, 0] = strength * params.kp
+        self._bias[:, :j, 1] = -strength * params.kp
+        self._bias[:, :j, 2] = -strength * params.kd
+        self._force_range[:, :j, 0] = -strength * self._limits
+        self._force_range[:, :j, 1] = strength * self._limits
+        friction = np.zeros((self.num_envs, j)) if params.motor_friction is None else params.motor_friction
+        self._bias[:, j:, 2] = -np.asarray(friction) / MOTOR_FRICTION_VELOCITY
+        self._force_range[:, j:, 0] = -friction
+        self._force_range[:, j:, 1] = friction
         self.params = params
-        if self.variant_models is not None:
+        if self.has_variants:
             return  # friction and payload are the variants' own
         payload = np.zeros(self.num_envs) if params.payload is None else params.payload
         if np.all(params.friction == 1.0) and np.all(payload == 0.0) and self.batch.expanded("body_mass") is None:
@@ -104,6 +135,7 @@ class MujocoBackend:
         friction[:, self._terrain_geoms, 0] = params.friction[:, None]
         mass[:, self._root_body] = self._base_mass + payload
         self.batch.set_const()
+        self.batch.forward(stage=mujoco.mjtStage.mjSTAGE_VEL)  # the stages the next step continues from
 
     def set_base_force(self, force: np.ndarray) -> None:
         """A force [N] (N, 3), world frame, on each root body's centre of mass during every later physics step."""
@@ -139,24 +171,19 @@ class MujocoBackend:
         self.diverged[ids] = bad | divergence_mask(state)
 
     def step(self, joint_targets) -> None:
-        """One control period: ``substeps`` × (PD torque in numpy, one MuJoCo step)."""
+        """One control period: ``substeps`` MuJoCo steps in one batch call, the actuators tracking the targets."""
         targets = check_targets(joint_targets, self.num_envs, self.spec.n_joints)
-        params, limits = self.params, self._limits
+        ids = np.flatnonzero(~self.diverged).astype(np.int32) if self.diverged.any() else None
+        if ids is not None and ids.size == 0:
+            return
+        self._ctrl[:, : self.spec.n_joints] = targets
         warnings_before = self.batch.warning[:, _INSTABILITY, 0].sum(axis=1)
-        for _ in range(self.substeps):  # the hot loop: keep it lean
-            any_diverged = self.diverged.any()
-            ids = np.flatnonzero(~self.diverged).astype(np.int32) if any_diverged else None
-            if ids is not None and ids.size == 0:
-                break
-            q, qd = self._qpos[:, self._qadr], self._qvel[:, self._dadr]
-            tau = actuator_torque(params, limits, targets, q, qd)
-            self._ctrl[:] = np.where(self.diverged[:, None], 0.0, tau) if any_diverged else tau
-            try:
-                self.batch.step(ids, nstep=1)
-            except mjbatch.SimulationError as exc:
-                self.diverged[np.asarray(exc.ids)] = True
-        self._tau = np.array(self._ctrl)
+        try:
+            self.batch.step(ids, nstep=self.substeps, stage=mujoco.mjtStage.mjSTAGE_VEL)
+        except mjbatch.SimulationError as exc:
+            self.diverged[np.asarray(exc.ids)] = True
         self.diverged |= self.batch.warning[:, _INSTABILITY, 0].sum(axis=1) > warnings_before
+        self._tau = np.where(self.diverged[:, None], 0.0, self._qfrc_actuator[:, self._dadr])
         self.diverged |= divergence_mask(self._raw_state())
 
     def _raw_state(self) -> RobotState:
@@ -176,13 +203,15 @@ class MujocoBackend:
         state.tau = self._tau.copy()
         return state
 
+    def whole_body_com(self) -> np.ndarray:
+        """Whole-body CoM in the world [m] (N, 3): the root's ``subtree_com``, current after every call."""
+        return self._subtree_com[:, self._root_body].copy()
+
     def mass_properties(self) -> tuple[np.ndarray, np.ndarray]:
         """(total robot mass [kg] (N,), whole-body CoM in the world [m] (N, 3)) as MuJoCo holds them."""
         mass = self.batch.expanded("body_mass")
         masses = (mass if mass is not None else np.tile(self.model.body_mass, (self.num_envs, 1)))[:, self._root_body :]
-        self.batch.forward()
-        com = self.batch.bind("subtree_com")[:, self._root_body].copy()
-        return masses.sum(axis=1), com
+        return masses.sum(axis=1), self.whole_body_com()
 
     def contacts(self) -> Contacts:
         """Net contact force per link from ``cfrc_ext`` (world frame), summarised by group."""
@@ -192,3 +221,24 @@ class MujocoBackend:
     def close(self) -> None:
         """Release the batch."""
         self.batch = None
+
+
+def expand_variants(batch: mjbatch.Batch, model: mujoco.MjModel, variants: list[mujoco.MjModel],
+                    assignment: np.ndarray) -> list[str]:
+    """Run simulation i of ``batch`` (built on ``model``) as ``variants[assignment[i]]``: every model field in
+    which a variant differs from ``model`` is expanded and given each simulation's value. The variants must be
+    compiled from robots with the same links, joints and geoms (same sizes); returns the expanded fields."""
+    changed = []
+    for name in sorted(n for n in dir(model) if isinstance(getattr(model, n, None), np.ndarray)):
+        base = getattr(model, name)
+        values = [getattr(v, name) for v in variants]
+        if any(v.shape != base.shape for v in values):
+            raise ValueError(f"morphology variants: model field {name} has another shape than the base robot's")
+        if all(np.array_equal(v, base) for v in values):
+            continue
+        if name not in mjbatch.MODEL_FIELDS:
+            raise ValueError(f"morphology variants: model field {name} differs between variants but cannot be "
+                             "given per-simulation values")
+        batch.expand(name)[:] = np.stack(values)[assignment]
+        changed.append(name)
+    return changed

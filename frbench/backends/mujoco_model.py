@@ -9,9 +9,23 @@ Pinocchio load). What this adds, and why:
 * each body's collisions with all its ancestors excluded (MuJoCo only excludes
   parent/child; Bullet's ``URDF_USE_SELF_COLLISION_EXCLUDE_ALL_PARENTS`` does this),
   and the pairs of :func:`~frbench.robots.sim_urdf.self_collision_exclusions`;
-* one motor (torque) actuator per joint in canonical order, unclipped: the
-  backend computes the PD torque in numpy at every physics step, with the
-  same formula as the PyBullet backend (and per-simulation gains);
+* two native actuators per joint, so that MuJoCo computes the actuation of
+  `frbench.backends.base.actuator_torque` itself at every physics step and one
+  ``Batch.step(nstep=substeps)`` call advances a whole control period:
+
+  - the PD, a position actuator ``pd_<joint>`` (rows ``0 .. J−1``, canonical
+    order, ctrl = q*): force = clip(gainprm₀·ctrl + biasprm₁·q + biasprm₂·q̇,
+    forcerange) with gainprm₀ = s·Kp, biasprm = [0, −s·Kp, −s·Kd] and
+    forcerange = ±s·τmax, which is s·clip(Kp (q* − q) − Kd q̇, ±τmax) for a
+    strength s ≥ 0 (gear 1: a gear of s would scale the length and velocity
+    the bias reads too);
+  - the motor friction, ``friction_<joint>`` (rows ``J .. 2J−1``, no ctrl):
+    force = clip(−(f / v_f)·q̇, ±f) = −f·clip(q̇ / v_f, ±1);
+
+  the gains here are the spec's at strength 1 and no friction; the backend
+  writes per-simulation values (``Batch.expand``). The Euler integrator keeps
+  both velocity terms explicit, as in PyBullet, where the backend computes the
+  same formula in numpy;
 * an accelerometer on the root so that MuJoCo computes ``cfrc_ext`` (the net
   contact force on every body) at every step;
 * an elliptic friction cone with impratio 100 (see ``build_spec``);
@@ -64,17 +78,31 @@ def build_spec(spec: RobotSpec, terrain, friction: float = 1.0) -> mujoco.MjSpec
         joint.actfrclimited = mujoco.mjtLimited.mjLIMITED_FALSE
         joint.damping = np.zeros(3)
         joint.armature, joint.frictionloss = 0.0, 0.0
-        actuator = mj.add_actuator()
-        actuator.name = f"motor_{name}"
-        actuator.target = name
-        actuator.trntype = mujoco.mjtTrn.mjTRN_JOINT
-        actuator.set_to_motor()
-        actuator.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
-        actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_FALSE
+    for (name, kp, kd, limit) in zip(spec.joint_names, spec.kp, spec.kd, spec.torque_limits):
+        _add_joint_actuator(mj, f"pd_{name}", name, gain=float(kp), bias=(-float(kp), -float(kd)), limit=float(limit))
+    for name in spec.joint_names:  # no friction until the backend sets it (the range must be non-empty)
+        _add_joint_actuator(mj, f"friction_{name}", name, gain=0.0, bias=(0.0, 0.0), limit=1.0)
     add_to_mjspec(mj, terrain, friction)
     light = mj.worldbody.add_light()
     light.pos, light.dir = [0, 0, 6], [0, 0, -1]
     return mj
+
+
+def _add_joint_actuator(mj: mujoco.MjSpec, name: str, joint: str, gain: float, bias: tuple[float, float],
+                        limit: float) -> None:
+    """A gear-1 actuator on ``joint``: force = clip(gain·ctrl + bias₀·q + bias₁·q̇, ±limit), no dynamics."""
+    actuator = mj.add_actuator()
+    actuator.name, actuator.target = name, joint
+    actuator.trntype = mujoco.mjtTrn.mjTRN_JOINT
+    actuator.dyntype = mujoco.mjtDyn.mjDYN_NONE
+    actuator.gaintype = mujoco.mjtGain.mjGAIN_FIXED
+    actuator.biastype = mujoco.mjtBias.mjBIAS_AFFINE
+    actuator.gear = [1.0, 0, 0, 0, 0, 0]
+    actuator.gainprm = [gain] + [0.0] * 9
+    actuator.biasprm = [0.0, bias[0], bias[1]] + [0.0] * 7
+    actuator.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+    actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+    actuator.forcerange = [-limit, limit]
 
 
 def build_model(spec: RobotSpec, terrain, friction: float = 1.0) -> mujoco.MjModel:

@@ -97,6 +97,7 @@ class _Simulation:
         # link index per simulated link: -1 for the root
         self.link_index = np.array([-1 if i == 0 else index_of[name] for i, name in enumerate(link_names)])
         self.row_of_link = {int(idx): row for row, idx in enumerate(self.link_index)}
+        self.child_links = [int(idx) for idx in self.link_index[1:]]
         row = {name: int(self.link_index[i]) for i, name in enumerate(link_names)}
         for link_a, link_b in self_collision_exclusions(spec):
             c.setCollisionFilterPair(self.robot, self.robot, row[link_a], row[link_b], 0)
@@ -139,6 +140,7 @@ class PybulletBackend:
         self._base_force = np.zeros((self.num_envs, 3))
         self._limits = np.asarray(spec.torque_limits)
         self._state: RobotState | None = None
+        self._masses: np.ndarray | None = None  # (N, n_links) [kg], read again after set_params
         self.params = PhysicsParams.nominal(spec, self.num_envs)
 
     # ------------------------------------------------------------------ params
@@ -150,6 +152,7 @@ class PybulletBackend:
                 sim.client.changeDynamics(body, -1, lateralFriction=float(params.friction[i]))
             sim.client.changeDynamics(sim.robot, -1, mass=float(sim.base_mass + payload[i]))
         self.params = params
+        self._masses = None
 
     def set_base_force(self, force: np.ndarray) -> None:
         """A force [N] (N, 3), world frame, on each root link's centre of mass during every later physics step."""
@@ -222,22 +225,28 @@ class PybulletBackend:
             self._state = self._read_state()
         return self._state.copy()
 
-    def mass_properties(self) -> tuple[np.ndarray, np.ndarray]:
-        """(total robot mass [kg] (N,), whole-body CoM in the world [m] (N, 3)) as Bullet holds them."""
-        masses, coms = np.zeros(self.num_envs), np.zeros((self.num_envs, 3))
+    def _link_masses(self) -> np.ndarray:
+        """(N, n_links) link masses [kg] as Bullet holds them, links in ``link_names`` order."""
+        return np.array([[sim.client.getDynamicsInfo(sim.robot, int(link))[0] for link in sim.link_index]
+                         for sim in self.sims])
+
+    def whole_body_com(self) -> np.ndarray:
+        """Whole-body CoM in the world [m] (N, 3): one ``getLinkStates`` per simulation, the weighting in numpy."""
+        if self._masses is None:
+            self._masses = self._link_masses()
+        positions = np.zeros((self.num_envs, len(self.link_names), 3))
         for i, sim in enumerate(self.sims):
             c = sim.client
-            total, moment = 0.0, np.zeros(3)
-            for link in sim.link_index:
-                mass = c.getDynamicsInfo(sim.robot, int(link))[0]
-                if link < 0:
-                    pos = c.getBasePositionAndOrientation(sim.robot)[0]
-                else:
-                    pos = c.getLinkState(sim.robot, int(link), computeForwardKinematics=True)[0]
-                total += mass
-                moment += mass * np.array(pos)
-            masses[i], coms[i] = total, moment / total
-        return masses, coms
+            positions[i, 0] = c.getBasePositionAndOrientation(sim.robot)[0]
+            states = c.getLinkStates(sim.robot, sim.child_links, computeForwardKinematics=True)
+            positions[i, 1:] = [state[0] for state in states]
+        masses = self._masses
+        return np.einsum("nl,nlx->nx", masses, positions) / masses.sum(axis=1, keepdims=True)
+
+    def mass_properties(self) -> tuple[np.ndarray, np.ndarray]:
+        """(total robot mass [kg] (N,), whole-body CoM in the world [m] (N, 3)) as Bullet holds them."""
+        self._masses = self._link_masses()
+        return self._masses.sum(axis=1), self.whole_body_com()
 
     def contacts(self) -> Contacts:
         """Net contact force per link from ``getContactPoints`` (world frame), summarised by group."""

@@ -125,6 +125,10 @@ class SplitBackend:
         masses, coms = zip(*(part.mass_properties() for part in self.parts))
         return np.concatenate(masses), np.concatenate(coms)
 
+    def whole_body_com(self) -> np.ndarray:
+        """Whole-body CoM [m] (N, 3), each part's rows from its simulator."""
+        return np.concatenate([part.whole_body_com() for part in self.parts])
+
     def set_base_force(self, force: np.ndarray) -> None:
         """Apply ``force`` [N] (N, 3, world frame) at each root link's CoM in every later physics step."""
         force = np.asarray(force, dtype=float)

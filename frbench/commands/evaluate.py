@@ -55,7 +55,7 @@ def run(args) -> int:
         run_grid,
         validate,
     )
-    from frbench.evaluation.results import initial_pose_table, results_table
+    from frbench.evaluation.results import aggregate_table, initial_pose_table, results_table
     from frbench.io import atomic_write_text, check_output_path
 
     request = EvaluationRequest(
@@ -85,6 +85,7 @@ def run(args) -> int:
     for name, check in robot_checks.items():
         results["robots"][name]["check"] = check
     print(results_table(results["summary"], results["sim_to_sim"]))
+    print("\nMean cell success with its stratified-bootstrap 95 % interval:\n" + aggregate_table(results["cells"]))
     print("\nSuccess by initial pose:\n" + initial_pose_table(episodes))
     atomic_write_text(out, json.dumps(results, indent=1) + "\n")
     total = sum(c["successes"] for c in results["cells"])

@@ -102,9 +102,14 @@ def run_leaderboard(args: argparse.Namespace) -> int:
             for problem in report.problems:
                 print(f"frbench leaderboard --check: {problem}", file=sys.stderr)
             return 1
-        main = sum(1 for r in report.records if r["track"] == "main")
-        print(f"leaderboard {root} is valid and up to date: {len(report.records)} records "
-              f"({main} main, {len(report.records) - main} partial)")
+        from collections import Counter
+
+        from frbench.leaderboard.render import section_of
+        from frbench.tasks.protocol import PROTOCOL_VERSION
+
+        sections = Counter(section_of(r) for r in report.records)
+        print(f"leaderboard {root} is valid and up to date: {len(report.records)} records (protocol {PROTOCOL_VERSION}: "
+              f"{sections['main']} main, {sections['partial']} partial; {sections['archived']} archived)")
         return 0
     fmt = args.format or "table"
     if fmt in ("md", "html"):

@@ -2,9 +2,12 @@
 
 Layout (schema_version 1, JSON Schema in ``frbench/schemas/results-v1.schema.json``):
 ``cells`` per (robot, backend, terrain, level, seed); ``summary`` per (robot,
-backend, terrain, level) with the success rate's mean and std over seeds;
+backend, terrain, level) with the success rate's mean over seeds, the pooled
+successes / episodes and their 95 % Wilson interval (``ci95``; the std over
+seeds is kept for the schema but never shown: with one seed it is 0);
 ``sim_to_sim`` per (robot, terrain, level) with each backend's mean and the
-gap MuJoCo − PyBullet; ``episodes`` keeps every episode.
+gap MuJoCo − PyBullet; ``episodes`` keeps every episode. Aggregates over many
+cells get stratified-bootstrap intervals (`frbench.evaluation.intervals`).
 """
 
 from __future__ import annotations
@@ -12,6 +15,8 @@ from __future__ import annotations
 from collections import defaultdict
 
 import numpy as np
+
+from frbench.evaluation.intervals import bootstrap_rates, percentile_interval, sim_to_sim_gaps, sorted_cells, wilson_interval
 
 CELL_KEYS = ("robot", "backend", "terrain", "level", "seed")
 _MEANS = {
@@ -52,17 +57,20 @@ def aggregate_cells(episodes: list[dict]) -> list[dict]:
 
 
 def summarize(cells: list[dict]) -> list[dict]:
-    """Success rate mean ± std over seeds per (robot, backend, terrain, level)."""
-    groups: dict[tuple, list[float]] = defaultdict(list)
+    """Per (robot, backend, terrain, level): mean success over seeds, pooled successes / episodes, Wilson 95 %."""
+    groups: dict[tuple, list[dict]] = defaultdict(list)
     for cell in cells:
-        groups[(cell["robot"], cell["backend"], cell["terrain"], cell["level"])].append(cell["success_rate"])
-    return [
-        {
+        groups[(cell["robot"], cell["backend"], cell["terrain"], cell["level"])].append(cell)
+    rows = []
+    for k, group in sorted(groups.items()):
+        rates = [c["success_rate"] for c in group]
+        successes, episodes = sum(c["successes"] for c in group), sum(c["episodes"] for c in group)
+        rows.append({
             "robot": k[0], "backend": k[1], "terrain": k[2], "level": k[3],
-            "success_rate_mean": float(np.mean(v)), "success_rate_std": float(np.std(v)), "n_seeds": len(v),
-        }
-        for k, v in sorted(groups.items())
-    ]
+            "success_rate_mean": float(np.mean(rates)), "success_rate_std": float(np.std(rates)), "n_seeds": len(rates),
+            "successes": successes, "episodes": episodes, "ci95": list(wilson_interval(successes, episodes)),
+        })
+    return rows
 
 
 def sim_to_sim(summary: list[dict]) -> list[dict]:
@@ -78,24 +86,62 @@ def sim_to_sim(summary: list[dict]) -> list[dict]:
     return out
 
 
+def fmt_count(row: dict) -> str:
+    """``k/n rate% [low-high]`` of a summary row (Wilson 95 %)."""
+    low, high = row["ci95"]
+    return f"{row['successes']}/{row['episodes']} {100 * row['successes'] / row['episodes']:5.1f}% [{100 * low:3.0f}-{100 * high:3.0f}]"
+
+
 def results_table(summary: list[dict], gaps: list[dict]) -> str:
-    """Plain-text table: success mean ± std per backend and the sim-to-sim gap, one row per (robot, terrain, level)."""
+    """Plain-text table: successes / episodes, rate and 95 % Wilson interval per backend, and the sim-to-sim gap,
+    one row per (robot, terrain, level)."""
     by_key: dict[tuple, dict[str, dict]] = defaultdict(dict)
     for row in summary:
         by_key[(row["robot"], row["terrain"], row["level"])][row["backend"]] = row
     gap_of = {(g["robot"], g["terrain"], g["level"]): g["gap"] for g in gaps}
     backends = sorted({row["backend"] for row in summary})
-    header = f"{'robot':<11} {'terrain':<8} {'level':>5} " + " ".join(f"{b:>15}" for b in backends) + f" {'gap (mj-pb)':>12}"
+    header = f"{'robot':<11} {'terrain':<8} {'level':>5} " + " ".join(f"{b:>24}" for b in backends) + f" {'gap (mj-pb)':>12}"
     lines = [header, "-" * len(header)]
     for key in sorted(by_key):
         rates = by_key[key]
         cols = []
         for backend in backends:
             row = rates.get(backend)
-            cols.append(f"{100 * row['success_rate_mean']:6.1f} ± {100 * row['success_rate_std']:4.1f}%" if row else f"{'-':>15}")
+            cols.append(fmt_count(row) if row else "-")
         gap = gap_of.get(key)
-        lines.append(f"{key[0]:<11} {key[1]:<8} {key[2]:>5} " + " ".join(f"{c:>15}" for c in cols)
+        lines.append(f"{key[0]:<11} {key[1]:<8} {key[2]:>5} " + " ".join(f"{c:>24}" for c in cols)
                      + f" {('%+.1f pts' % (100 * gap)) if gap is not None else '-':>12}")
+    return "\n".join(lines)
+
+
+def aggregate_intervals(cells: list[dict]) -> dict[str, tuple[float, float, float]]:
+    """Name -> (mean cell success, bootstrap 95 % low, high): overall, per family, per backend, per robot, and the
+    signed sim-to-sim gap MuJoCo − PyBullet when both backends ran (``frbench.evaluation.intervals``)."""
+    ordered = sorted_cells(cells)
+    rates = bootstrap_rates(ordered)
+    point = np.array([c["success_rate"] for c in ordered])
+    k = np.array([c["successes"] for c in ordered])
+    n = np.array([c["episodes"] for c in ordered])
+    out = {"overall": (float(point.mean()), *percentile_interval(rates.mean(axis=1), k.sum(), n.sum()))}
+    for field in ("terrain", "backend", "robot"):
+        values = sorted({c[field] for c in ordered})
+        if len(values) < 2:
+            continue
+        for value in values:
+            mask = np.array([c[field] == value for c in ordered])
+            out[f"{field} {value}"] = (float(point[mask].mean()),
+                                       *percentile_interval(rates[:, mask].mean(axis=1), k[mask].sum(), n[mask].sum()))
+    gaps = sim_to_sim_gaps(ordered, rates)
+    if gaps is not None:
+        out["gap MuJoCo - PyBullet"] = (float(sim_to_sim_gaps(ordered, point[None, :])[0]), *percentile_interval(gaps))
+    return out
+
+
+def aggregate_table(cells: list[dict]) -> str:
+    """Plain-text lines of `aggregate_intervals`."""
+    lines = []
+    for name, (mean, low, high) in aggregate_intervals(cells).items():
+        lines.append(f"{name:<24} {100 * mean:5.1f}%  [{100 * low:5.1f}, {100 * high:5.1f}]")
     return "\n".join(lines)
 
 

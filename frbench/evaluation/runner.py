@@ -84,6 +84,7 @@ def run_cell(cell: Cell, policy_reference: str, noise: bool = False) -> list[dic
                 **base,
                 "episode": i,
                 "initial_pose": starts.kinds[i],
+                "start_redraws": int(starts.attempts[i]),
                 "success": bool(success.success[i] and not diverged[i]),
                 "time_to_recover": _none_if_nan(success.time_to_recover[i]) if success.success[i] else None,
                 "final_displacement": float(metrics.final_displacement[i]),

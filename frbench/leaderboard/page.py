@@ -2,7 +2,10 @@
 
 The page works opened from disk, with no network: data is embedded as JSON,
 the script recomputes scores for the chosen filters from per-(robot, backend,
-terrain, level) aggregates, sorts the tables, draws one SVG success-vs-level
+terrain, level) aggregates, shows each score's 95 % interval (precomputed by
+frbench for no filter and for each single filter), marks ranked neighbours whose
+intervals overlap, keeps records of earlier protocol versions in an archived
+table that is never ranked against the current one, sorts the tables, draws one SVG success-vs-level
 chart per terrain family and shows a record's provenance on click. It builds
 the DOM with ``textContent`` and attributes only (never ``innerHTML``), so
 submitted text stays text. State lives in the URL hash, e.g.
@@ -24,7 +27,8 @@ PAGE_TEMPLATE = """<!DOCTYPE html>
 <h1>frbench leaderboard</h1>
 <p>Fall-recovery policies evaluated with <code>frbench evaluate</code> and submitted with <code>frbench submit</code>.
 Scores are recomputed from each record's cells for the chosen filters: mean success rate, per terrain family and backend,
-and the mean sim-to-sim gap |MuJoCo &minus; PyBullet| (lower is better). Click a row for its provenance.</p>
+and the signed sim-to-sim gap MuJoCo &minus; PyBullet. In parentheses: the 95 % interval of each score (stratified bootstrap over
+cells and episodes; shown with no filter or one filter). Click a row for its provenance.</p>
 </header>
 <main>
 <form id="filters" aria-label="Filters">
@@ -44,6 +48,12 @@ and the mean sim-to-sim gap |MuJoCo &minus; PyBullet| (lower is better). Click a
 <p class="note">Records that do not cover the whole standard grid, scored on the cells they have; not ranked against the main board.</p>
 <div class="scroll"><table id="partial-table" class="board"></table></div>
 <p class="empty" id="partial-empty" hidden>None.</p>
+</section>
+<section id="archived-board">
+<h2>Archived records (earlier protocol versions)</h2>
+<p class="note" id="archived-note"></p>
+<div class="scroll"><table id="archived-table" class="board"></table></div>
+<p class="empty" id="archived-empty" hidden>None.</p>
 </section>
 <section id="details" hidden aria-live="polite">
 <div class="details-head"><h2 id="details-title">Provenance</h2><button type="button" id="details-close">Close</button></div>
@@ -130,6 +140,16 @@ PAGE_SCRIPT = r"""
     return node;
   }
   function fmt(x) { return (x === null || x === undefined) ? "\u2013" : x.toFixed(3); }
+  function fmtIv(x, iv) { return (x === null || x === undefined || !iv) ? fmt(x) : fmt(x) + " (" + fmt(iv[0]) + "\u2013" + fmt(iv[1]) + ")"; }
+  function signed(x) { return (x < 0 ? "\u2212" : "+") + Math.abs(x).toFixed(3); }
+  // Intervals of one record for the current filters: precomputed for no filter and for each single filter.
+  function intervals(rec) {
+    var active = ["robot", "backend", "family"].filter(function (k) { return state[k]; });
+    if (active.length > 1) { return null; }
+    var key = active.length ? active[0] + "=" + state[active[0]] : "";
+    return rec.intervals[key] || null;
+  }
+  function overlaps(a, b) { return !!(a && b && a[0] <= b[1] && b[0] <= a[1]); }
   function mean(acc) { return acc && acc[1] ? acc[0] / acc[1] : null; }
   function add(map, key, sum, count) {
     var acc = map[key] || (map[key] = [0, 0]);
@@ -173,35 +193,52 @@ PAGE_SCRIPT = r"""
     return a.r.id < b.r.id ? -1 : (a.r.id > b.r.id ? 1 : 0);
   }
 
-  function rows(track) {
+  function rows(section) {
     var list = [];
     DATA.records.forEach(function (r) {
-      if (r.track !== track) { return; }
+      if (r.section !== section) { return; }
       var s = scores(r);
-      if (s) { list.push({r: r, s: s}); }
+      if (s) { list.push({r: r, s: s, iv: intervals(r)}); }
     });
-    list.sort(rankCompare);
-    list.forEach(function (row, i) { row.rank = i + 1; });
+    list.sort(function (a, b) {
+      if (a.r.protocol_version !== b.r.protocol_version) { return a.r.protocol_version < b.r.protocol_version ? -1 : 1; }
+      return rankCompare(a, b);
+    });
+    var previous = null;
+    list.forEach(function (row, i) {
+      row.rank = i + 1;
+      var ranked = section === "main" || (section === "archived" && row.r.track === "main");
+      var same = previous && previous.r.protocol_version === row.r.protocol_version;
+      row.tied = ranked && !!same && overlaps(row.iv && row.iv.overall, previous.iv && previous.iv.overall);
+      if (ranked) { previous = row; }
+    });
     return list;
   }
 
   function columns() {
     var cols = [
-      {key: "rank", label: "#", num: true, dir: "asc", get: function (x) { return x.rank; }},
+      {key: "rank", label: "#", num: true, dir: "asc", get: function (x) { return x.rank; },
+       show: function (x) { return String(x.rank) + (x.tied ? " ~" : ""); }},
       {key: "name", label: "Name", dir: "asc", get: function (x) { return x.r.name; }},
       {key: "policy", label: "Policy", dir: "asc", get: function (x) { return x.r.policy; }},
       {key: "submitter", label: "Submitter", dir: "asc", get: function (x) { return x.r.submitter; }},
-      {key: "overall", label: "Overall", num: true, score: true, dir: "desc", get: function (x) { return x.s.overall; }}
+      {key: "protocol", label: "Protocol", dir: "asc", get: function (x) { return x.r.protocol_version; }},
+      {key: "overall", label: "Overall", num: true, score: true, dir: "desc", get: function (x) { return x.s.overall; },
+       iv: function (x) { return x.iv && x.iv.overall; }}
     ];
     DATA.families.forEach(function (f) {
       cols.push({key: "family:" + f, label: f, num: true, score: true, dir: "desc", family: f,
-                 get: function (x) { var v = x.s.family[f]; return v === undefined ? null : v; }});
+                 get: function (x) { var v = x.s.family[f]; return v === undefined ? null : v; },
+                 iv: function (x) { return x.iv && x.iv.per_family[f]; }});
     });
     DATA.backends.forEach(function (b) {
       cols.push({key: "backend:" + b, label: LABELS[b] || b, num: true, score: true, dir: "desc",
-                 get: function (x) { var v = x.s.backend[b]; return v === undefined ? null : v; }});
+                 get: function (x) { var v = x.s.backend[b]; return v === undefined ? null : v; },
+                 iv: function (x) { return x.iv && x.iv.per_backend[b]; }});
     });
-    cols.push({key: "gap", label: "Gap", title: "Sim-to-sim gap |MuJoCo \u2212 PyBullet|, lower is better", num: true, dir: "asc", get: function (x) { return x.s.gap; }});
+    cols.push({key: "gap", label: "Gap", title: "Signed sim-to-sim gap MuJoCo \u2212 PyBullet with its 95 % interval", num: true, dir: "asc",
+               get: function (x) { return x.iv && x.iv.signed_gap ? x.iv.signed_gap[0] : null; },
+               show: function (x) { var g = x.iv && x.iv.signed_gap; return g ? signed(g[0]) + " (" + signed(g[1]) + ".." + signed(g[2]) + ")" : "\u2013"; }});
     cols.push({key: "cells", label: "Cells", num: true, dir: "desc", get: function (x) { return x.s.cells; }});
     cols.push({key: "submitted", label: "Submitted", dir: "asc", get: function (x) { return x.r.submitted.slice(0, 10); }});
     cols.push({key: "id", label: "Record", dir: "asc", id: true, get: function (x) { return x.r.id.slice(0, 12); }});
@@ -233,11 +270,12 @@ PAGE_SCRIPT = r"""
     var table = document.getElementById(track + "-table");
     var empty = document.getElementById(track + "-empty");
     var list = rows(track), cols = columns();
+    if (track !== "archived") { cols = cols.filter(function (c) { return c.key !== "protocol"; }); }
     sortRows(list, cols);
     table.textContent = "";
     empty.hidden = list.length > 0;
     table.hidden = list.length === 0;
-    if (!DATA.records.some(function (r) { return r.track === track; })) {
+    if (!DATA.records.some(function (r) { return r.section === track; })) {
       empty.textContent = track === "main" ? "No records yet: submit one with frbench submit RESULTS.json." : "None.";
     } else {
       empty.textContent = "No records match these filters.";
@@ -263,8 +301,10 @@ PAGE_SCRIPT = r"""
       var tr = el("tr", {tabindex: "0", "data-id": x.r.id, "aria-selected": String(state.record === x.r.id)});
       cols.forEach(function (c) {
         var v = c.get(x), td;
-        if (c.score || c.key === "gap") {
-          td = el("td", {"class": "num" + (v === null ? " off" : "")}, fmt(v));
+        if (c.show) {
+          td = el("td", {"class": "num" + (v === null ? " off" : "")}, c.show(x));
+        } else if (c.score) {
+          td = el("td", {"class": "num" + (v === null ? " off" : "")}, fmtIv(v, c.iv(x)));
           if (c.score && v !== null) { td.style.backgroundColor = shade(v); }
         } else if (c.key === "name") {
           td = el("td", {title: x.r.description || x.r.name}, v);
@@ -315,7 +355,8 @@ PAGE_SCRIPT = r"""
     document.getElementById("details-title").textContent = "Provenance: " + rec.name;
     var dl = el("dl");
     dlRow(dl, "Record", rec.id);
-    dlRow(dl, "Track", rec.track === "main" ? "main board (standard grid)" : "partial");
+    dlRow(dl, "Track", rec.section === "archived" ? "archived (protocol " + rec.protocol_version + ", not ranked against " + DATA.protocol + ")"
+                       : rec.track === "main" ? "main board (standard grid)" : "partial");
     dlRow(dl, "Policy", rec.policy);
     dlRow(dl, "Submitter", rec.submitter);
     dlRow(dl, "Submitted", rec.submitted);
@@ -428,6 +469,7 @@ PAGE_SCRIPT = r"""
   function update() {
     ["robot", "backend", "family"].forEach(function (k) { document.getElementById("filter-" + k).value = state[k]; });
     var mainRows = renderTable("main"), partialRows = renderTable("partial");
+    renderTable("archived");
     renderDetails();
     renderCharts(mainRows.slice().sort(function (a, b) { return a.rank - b.rank; }),
                  partialRows.slice().sort(function (a, b) { return a.rank - b.rank; }));
@@ -435,7 +477,10 @@ PAGE_SCRIPT = r"""
   }
 
   document.getElementById("standard-note").textContent =
-    "Records that cover the standard grid: " + DATA.standard + ". Ranked by overall success, then by sim-to-sim gap.";
+    "Protocol " + DATA.protocol + ". Records that cover the standard grid: " + DATA.standard +
+    ". Ranked by overall success, then by sim-to-sim gap; \u201c~\u201d after a rank: its overall interval overlaps the record above.";
+  document.getElementById("archived-note").textContent =
+    "Records evaluated under an earlier protocol version; never ranked against protocol " + DATA.protocol + ".";
   fillSelect("filter-robot", DATA.robots, {});
   fillSelect("filter-backend", DATA.backends, LABELS);
   fillSelect("filter-family", DATA.families, {});

@@ -18,9 +18,18 @@ from decimal import ROUND_HALF_UP, Decimal
 from typing import Iterable, Mapping, Sequence
 
 from frbench.leaderboard.page import PAGE_SCRIPT, PAGE_STYLE, PAGE_TEMPLATE
-from frbench.leaderboard.scores import aggregate, groups_of, rank_key, scored_cells
+from frbench.leaderboard.scores import (
+    aggregate,
+    check_same_protocol,
+    groups_of,
+    overlaps,
+    rank_key,
+    score_intervals,
+    scored_cells,
+)
 from frbench.tasks.protocol import (
     KNOWN_PROTOCOL_VERSIONS,
+    PROTOCOL_VERSION,
     STANDARD_BACKENDS,
     STANDARD_LEVELS,
     STANDARD_ROBOTS,
@@ -63,25 +72,52 @@ def axes(records: Sequence[Mapping]) -> dict[str, list]:
     }
 
 
+def section_of(record: Mapping) -> str:
+    """``main`` / ``partial`` for records of the current protocol version, ``archived`` for any other version."""
+    if record["results"]["protocol_version"] != PROTOCOL_VERSION:
+        return "archived"
+    return record["track"]
+
+
+def _rank(rows: list[dict]) -> None:
+    """Rank rows of one protocol version in place; mark each row whose overall interval overlaps its upper
+    neighbour's (``tied_above``: the order of the two is not established by the data)."""
+    check_same_protocol(row["protocol_version"] for row in rows)
+    rows.sort(key=lambda row: rank_key(row["scores"], row["submitted"], row["id"]))
+    for rank, row in enumerate(rows, 1):
+        row["rank"] = rank
+        above = rows[rank - 2]["intervals"]["overall"] if rank > 1 else None
+        row["tied_above"] = overlaps(row["intervals"]["overall"], above)
+
+
 def board(records: Sequence[Mapping], *, robot: str | None = None, backend: str | None = None, terrain: str | None = None) -> dict:
-    """Rows of both tracks, scored on the cells matching the filters, ranked; records without such cells are left out."""
-    tracks: dict[str, list[dict]] = {"main": [], "partial": []}
+    """Rows of every section, scored on the cells matching the filters, each score with its 95 % interval.
+
+    ``main`` and ``partial``: records of the current protocol version (main ranked); ``archived``: records of
+    other versions, main-track ones ranked within their own version only, never against the current ones.
+    Records without cells matching the filters are left out.
+    """
+    sections: dict[str, list[dict]] = {"main": [], "partial": [], "archived": []}
     for record in records:
-        groups = groups_of(scored_cells(record["results"]["cells"], record["track"]))
-        scores = aggregate(groups, robot=robot, backend=backend, terrain=terrain)
+        cells = scored_cells(record["results"]["cells"], record["track"])
+        scores = aggregate(groups_of(cells), robot=robot, backend=backend, terrain=terrain)
         if scores is None:
             continue
-        tracks[record["track"]].append({
+        sections[section_of(record)].append({
             **_identity(record),
             "protocol_version": record["results"]["protocol_version"],
             "scores": scores,
+            "intervals": score_intervals(cells, robot=robot, backend=backend, terrain=terrain),
         })
-    for rows in tracks.values():
-        rows.sort(key=lambda row: rank_key(row["scores"], row["submitted"], row["id"]))
-        for rank, row in enumerate(rows, 1):
-            row["rank"] = rank
+    _rank(sections["main"])
+    sections["partial"].sort(key=lambda row: rank_key(row["scores"], row["submitted"], row["id"]))
+    archived = sections["archived"]
+    for version in sorted({row["protocol_version"] for row in archived}):  # ranked within their own version only
+        _rank([row for row in archived if row["protocol_version"] == version and row["track"] == "main"])
+    archived.sort(key=lambda row: (row["protocol_version"], row["track"] != "main",
+                                   rank_key(row["scores"], row["submitted"], row["id"])))
     filters = {k: v for k, v in (("robot", robot), ("backend", backend), ("terrain", terrain)) if v is not None}
-    return {"filters": filters, "main": tracks["main"], "partial": tracks["partial"]}
+    return {"filters": filters, "protocol_version": PROTOCOL_VERSION, **sections}
 
 
 def fmt_score(value: float | None) -> str:
@@ -91,6 +127,23 @@ def fmt_score(value: float | None) -> str:
     return str(Decimal(value).quantize(Decimal("0.001"), rounding=ROUND_HALF_UP))
 
 
+def fmt_interval(value: float | None, interval: Sequence[float] | None) -> str:
+    """``0.354 (0.343-0.365)``: a score and its 95 % interval; ``-`` when there is no score."""
+    if value is None:
+        return "-"
+    if interval is None:
+        return fmt_score(value)
+    return f"{fmt_score(value)} ({fmt_score(interval[0])}-{fmt_score(interval[1])})"
+
+
+def fmt_gap(interval: Sequence[float] | None) -> str:
+    """The signed gap MuJoCo − PyBullet with its interval, ``+0.012 (-0.004-+0.027)``; ``-`` without both."""
+    if interval is None:
+        return "-"
+    sign = lambda v: ("+" if v >= 0 else "-") + fmt_score(abs(v))  # noqa: E731
+    return f"{sign(interval[0])} ({sign(interval[1])}..{sign(interval[2])})"
+
+
 # --------------------------------------------------------------------------- text and JSON
 
 
@@ -98,40 +151,51 @@ def render_json(records: Sequence[Mapping], **filters) -> str:
     return json.dumps(board(records, **filters), indent=2, sort_keys=True, ensure_ascii=False, allow_nan=False) + "\n"
 
 
-def _columns(families: Sequence[str], backends: Sequence[str]) -> list[tuple[str, callable]]:
-    columns = [
-        ("#", lambda r: str(r["rank"])),
+def _columns(families: Sequence[str], backends: Sequence[str], ranked: bool) -> list[tuple[str, callable]]:
+    def iv(row: dict, key: str, name: str | None = None):
+        value = row["scores"][key] if name is None else row["scores"][key].get(name)
+        interval = row["intervals"][key] if name is None else row["intervals"][key].get(name)
+        return fmt_interval(value, interval)
+
+    columns = [("#", lambda r: (str(r["rank"]) + ("~" if r["tied_above"] else "")) if "rank" in r else "-")] if ranked else []
+    columns += [
         ("name", lambda r: r["name"]),
         ("policy", lambda r: r["policy"]),
-        ("submitter", lambda r: r["submitter"]),
-        ("overall", lambda r: fmt_score(r["scores"]["overall"])),
+        ("protocol", lambda r: r["protocol_version"]),
+        ("overall", lambda r: iv(r, "overall")),
     ]
-    columns += [(f, lambda r, f=f: fmt_score(r["scores"]["per_family"].get(f))) for f in families]
-    columns += [(b, lambda r, b=b: fmt_score(r["scores"]["per_backend"].get(b))) for b in backends]
+    columns += [(f, lambda r, f=f: iv(r, "per_family", f)) for f in families]
+    columns += [(b, lambda r, b=b: iv(r, "per_backend", b)) for b in backends]
     columns += [
-        ("gap", lambda r: fmt_score(r["scores"]["sim_to_sim_gap"])),
+        ("gap mj-pb", lambda r: fmt_gap(r["intervals"]["signed_gap"])),
         ("cells", lambda r: str(r["scores"]["cells"])),
         ("id", lambda r: r["id"][:12]),
     ]
     return columns
 
 
+SECTION_TITLES = {
+    "main": "Main board, protocol {version}: records covering the standard grid, ranked by mean success "
+            "(~: its 95 % interval overlaps the record above)",
+    "partial": "Partial records, protocol {version} (not ranked against the main board)",
+    "archived": "Archived: records of earlier protocol versions, ranked within their own version only "
+                "(never against protocol {version})",
+}
+
+
 def render_table(records: Sequence[Mapping], **filters) -> str:
-    """A plain-text table per track."""
+    """A plain-text table per section; scores with their 95 % intervals."""
     data = board(records, **filters)
     shown = axes(records)
-    families = [f for f in shown["families"] if any(f in r["scores"]["per_family"] for r in data["main"] + data["partial"])] or list(STANDARD_TERRAINS)
-    columns = _columns(families, shown["backends"])
+    rows_all = data["main"] + data["partial"] + data["archived"]
+    families = [f for f in shown["families"] if any(f in r["scores"]["per_family"] for r in rows_all)] or list(STANDARD_TERRAINS)
     out = []
     if data["filters"]:
         out.append("filters: " + " ".join(f"{k}={v}" for k, v in data["filters"].items()))
-    titles = {
-        "main": "Main board: records covering the standard grid, ranked by mean success",
-        "partial": "Partial records (not ranked against the main board)",
-    }
-    for track in ("main", "partial"):
-        rows = data[track]
-        out.append(f"{titles[track]} ({len(rows)} record{'s' if len(rows) != 1 else ''})")
+    for section in ("main", "partial", "archived"):
+        rows = data[section]
+        columns = _columns(families, shown["backends"], section != "partial")
+        out.append(f"{SECTION_TITLES[section].format(version=PROTOCOL_VERSION)} ({len(rows)} record{'s' if len(rows) != 1 else ''})")
         if not rows:
             out.append("  (none)")
             out.append("")
@@ -139,8 +203,8 @@ def render_table(records: Sequence[Mapping], **filters) -> str:
         cells = [[c[0] for c in columns]] + [[get(row) for _, get in columns] for row in rows]
         widths = [max(len(line[i]) for line in cells) for i in range(len(columns))]
         for line in cells:
-            out.append("  ".join(v.rjust(w) if i == 0 or v[:1].isdigit() or v == "-" else v.ljust(w)
-                                 for i, (v, w) in enumerate(zip(line, widths))).rstrip())
+            out.append("  ".join(v.rjust(w) if v[:1].isdigit() or v[:1] in "+-" else v.ljust(w)
+                                 for v, w in zip(line, widths)).rstrip())
         out.append("")
     return "\n".join(out)
 
@@ -174,49 +238,67 @@ def render_markdown(records: Sequence[Mapping]) -> str:
         "Open [index.html](index.html) for filters by robot, backend and terrain family, success-vs-level",
         "charts and each record's provenance.",
         "",
-        f"Accepted protocol versions: {', '.join(KNOWN_PROTOCOL_VERSIONS)}. Records follow",
+        f"Current protocol: {PROTOCOL_VERSION} ([docs/protocol.md](../docs/protocol.md)); accepted versions: "
+        f"{', '.join(KNOWN_PROTOCOL_VERSIONS)}. Records follow",
         "[schema/record-v1.schema.json](schema/record-v1.schema.json); each file in `records/` is named by the",
         "sha256 of its results. Scores are recomputed from each record's cells: the mean success rate over cells",
-        "(one cell = robot x backend x terrain x level x seed), per terrain family and per backend, and the mean",
-        "sim-to-sim gap |MuJoCo - PyBullet| over (robot, terrain, level) (lower is better).",
+        "(one cell = robot x backend x terrain x level x seed), per terrain family and per backend. Beside each",
+        "score, in parentheses, its 95 % interval from a stratified bootstrap over cells and episodes (rliable's",
+        "procedure, `frbench/evaluation/intervals.py`). *Gap* is the signed sim-to-sim gap MuJoCo - PyBullet",
+        "(mean over robot x terrain x level) with its interval. Records of different protocol versions are never",
+        "ranked together: only the current version is ranked; earlier versions are archived below.",
         "",
-        "## Main board",
+        f"## Main board (protocol {PROTOCOL_VERSION})",
         "",
         f"Records that cover the standard grid: {_standard_text()}.",
-        "Ranked by overall success, then by sim-to-sim gap.",
+        "Ranked by overall success, then by sim-to-sim gap. A `~` after a rank: the record's overall interval",
+        "overlaps the one of the record above it, so their order is not established by the data.",
         "",
     ]
-    header = ["#", "Name", "Policy", "Submitter", "Overall"] + [md_escape(f) for f in families] \
+    header = ["Name", "Policy", "Submitter", "Overall"] + [md_escape(f) for f in families] \
         + [BACKEND_LABELS.get(b, md_escape(b)) for b in backends] + ["Gap", "Record"]
 
-    def table(rows: list[dict], ranked: bool) -> list[str]:
+    def table(rows: list[dict], ranked: bool, protocol: bool = False) -> list[str]:
         if not rows:
-            return ["_No records yet._" if ranked else "_None._", ""]
-        head = header if ranked else header[1:4] + ["Cells"] + header[4:]
+            return ["_No records yet._" if ranked and not protocol else "_None._", ""]
+        head = (["#"] if ranked else []) + header[:3] + (["Protocol"] if protocol else []) + (["Cells"] if protocol or not ranked else []) + header[3:]
         out = [_md_row(head), _md_row(["---"] * len(head))]
         for row in rows:
-            s = row["scores"]
+            s, iv = row["scores"], row["intervals"]
             values = [md_escape(row["name"]), md_escape(row["policy"]), md_escape(row["submitter"])]
-            if not ranked:
+            if protocol:
+                values.append(md_escape(row["protocol_version"]))
+            if protocol or not ranked:
                 values.append(str(s["cells"]))
-            values += [f"**{fmt_score(s['overall'])}**" if ranked else fmt_score(s["overall"])]
-            values += [fmt_score(s["per_family"].get(f)) for f in families]
-            values += [fmt_score(s["per_backend"].get(b)) for b in backends]
-            values += [fmt_score(s["sim_to_sim_gap"]), f"[{row['id'][:12]}](records/{row['id']}.json)"]
-            out.append(_md_row(([str(row["rank"])] if ranked else []) + values))
+            overall = fmt_interval(s["overall"], iv["overall"])
+            values += [f"**{overall}**" if ranked else overall]
+            values += [fmt_interval(s["per_family"].get(f), iv["per_family"].get(f)) for f in families]
+            values += [fmt_interval(s["per_backend"].get(b), iv["per_backend"].get(b)) for b in backends]
+            values += [fmt_gap(iv["signed_gap"]), f"[{row['id'][:12]}](records/{row['id']}.json)"]
+            rank = [(str(row["rank"]) + (" ~" if row["tied_above"] else "")) if "rank" in row else "-"] if ranked else []
+            out.append(_md_row(rank + values))
         return out + [""]
 
     lines += table(data["main"], True)
     lines += [
-        "## Partial records",
+        f"## Partial records (protocol {PROTOCOL_VERSION})",
         "",
         "Records that do not cover the whole standard grid, scored on the cells they have; not ranked",
         "against the main board.",
         "",
     ]
     lines += table(data["partial"], False)
+    lines += [
+        "## Archived records (earlier protocol versions)",
+        "",
+        "Records evaluated under an earlier protocol. Their numbers mean something else (docs/protocol.md lists",
+        f"what changed), so they are never ranked against protocol {PROTOCOL_VERSION}; records that covered that",
+        "version's standard grid are ranked among themselves (`~`: interval overlaps the one above), the rest (`-`) not.",
+        "",
+    ]
+    lines += table(data["archived"], True, protocol=True)
     by_id = {r["id"]: r for r in records}
-    rows = data["main"] + data["partial"]
+    rows = data["main"] + data["partial"] + data["archived"]
     lines += ["## Records", ""]
     if not rows:
         lines += ["_No records yet._", ""]
@@ -228,7 +310,8 @@ def render_markdown(records: Sequence[Mapping]) -> str:
         policy = results["policy"]
         checkpoint = f"checkpoint sha256 `{policy['sha256'][:16]}…`" if policy["sha256"] else "no checkpoint"
         link = f" — <{row['link']}>" if row["link"] else ""
-        lines.append(f"- **{md_escape(row['name'])}** (`{row['id'][:12]}`, {row['track']}, submitted {row['submitted']} "
+        section = section_of(by_id[row["id"]])
+        lines.append(f"- **{md_escape(row['name'])}** (`{row['id'][:12]}`, {section}, submitted {row['submitted']} "
                      f"by {md_escape(row['submitter'])}){link}")
         if row["description"]:
             lines.append(f"  - {md_escape(row['description'])}")
@@ -250,17 +333,26 @@ def page_data(records: Sequence[Mapping]) -> dict:
     """The JSON embedded in ``index.html``: per record, its (robot, backend, terrain, level) aggregates and provenance."""
     entries = []
     for record in sorted(records, key=lambda r: rank_key(r["scores"], r["submission"]["submitted"], r["id"])):
-        groups = groups_of(scored_cells(record["results"]["cells"], record["track"]))
+        cells = scored_cells(record["results"]["cells"], record["track"])
+        groups = groups_of(cells)
+        intervals = {"": score_intervals(cells)}
+        for field, key in (("robot", "robot"), ("backend", "backend"), ("terrain", "family")):
+            for value in sorted({c[field] for c in cells}, key=str):
+                intervals[f"{key}={value}"] = score_intervals(cells, **{field: value})
         entries.append({
             **_identity(record),
+            "section": section_of(record),
+            "protocol_version": record["results"]["protocol_version"],
             "episodes": record["scores"]["episodes"],
             "groups": [[*key, total, count] for key, (total, count) in groups.items()],
+            "intervals": intervals,
             "provenance": {k: record["results"][k] for k in PROVENANCE_FIELDS},
         })
     return {
-        "page_version": 1,
+        "page_version": 2,
         **axes(records),
         "standard": _standard_text(),
+        "protocol": PROTOCOL_VERSION,
         "protocols": list(KNOWN_PROTOCOL_VERSIONS),
         "records": entries,
     }

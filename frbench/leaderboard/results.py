@@ -214,10 +214,26 @@ def _check_episodes(results: dict, cells: dict[tuple, int]) -> None:
             )
 
 
+def _check_summary_counts(index: int, entry: dict, counts: list[int], where: str) -> None:
+    """The optional pooled counts and Wilson interval of a summary entry (protocol 1.1) agree with its cells."""
+    from frbench.evaluation.intervals import wilson_interval
+
+    for field, value in (("successes", counts[0]), ("episodes", counts[1])):
+        if field in entry and entry[field] != value:
+            raise ResultsError(f"summary[{index}].{field}: {entry[field]} but the cells of {where} have {value}")
+    if "ci95" in entry:
+        expected = wilson_interval(*counts)
+        if any(abs(a - b) > RATE_TOLERANCE for a, b in zip(entry["ci95"], expected)):
+            raise ResultsError(f"summary[{index}].ci95: {entry['ci95']} is not the Wilson interval of {counts[0]}/{counts[1]}")
+
+
 def _check_summary(results: dict) -> None:
     rates: dict[tuple, list[float]] = defaultdict(list)
+    counts: dict[tuple, list[int]] = defaultdict(lambda: [0, 0])
     for cell in results["cells"]:
         rates[tuple(cell[f] for f in GROUP_KEY)].append(cell["success_rate"])
+        counts[tuple(cell[f] for f in GROUP_KEY)][0] += cell["successes"]
+        counts[tuple(cell[f] for f in GROUP_KEY)][1] += cell["episodes"]
     means = {key: math.fsum(values) / len(values) for key, values in rates.items()}
     seen: dict[tuple, int] = {}
     for index, entry in enumerate(results["summary"]):
@@ -234,6 +250,7 @@ def _check_summary(results: dict) -> None:
             )
         if entry["n_seeds"] != len(rates[key]):
             raise ResultsError(f"summary[{index}].n_seeds: {entry['n_seeds']} but {len(rates[key])} cells have {describe(key, GROUP_KEY)}")
+        _check_summary_counts(index, entry, counts[key], describe(key, GROUP_KEY))
     for key in sorted(means, key=str):
         if key not in seen:
             raise ResultsError(f"summary: no entry for {describe(key, GROUP_KEY)}")

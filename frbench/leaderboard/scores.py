@@ -13,7 +13,10 @@ A record whose cells cover the standard grid (``frbench.tasks.protocol``) is on
 the ``main`` track and is scored on the standard grid's cells only, so main
 records are comparable; any other record is ``partial`` and scored on all its
 cells. Ranking: overall success (higher first), then sim-to-sim gap (lower
-first, none last), then submission time, then id.
+first, none last), then submission time, then id — only among records of one
+protocol version (`check_same_protocol`). Each score has a 95 % stratified-
+bootstrap interval (`score_intervals`), shown beside it; neighbours whose
+overall intervals overlap are marked on the board.
 
 Means use ``math.fsum`` so they do not depend on the order of the cells.
 """
@@ -22,8 +25,12 @@ from __future__ import annotations
 
 import itertools
 import math
+from functools import lru_cache
 from typing import Iterable, Mapping, Sequence
 
+import numpy as np
+
+from frbench.evaluation.intervals import bootstrap_rates, percentile_interval, sim_to_sim_gaps, sorted_cells
 from frbench.tasks.protocol import (
     STANDARD_BACKENDS,
     STANDARD_LEVELS,
@@ -126,7 +133,82 @@ def record_scores(cells: Sequence[Mapping], track: str) -> dict:
     }
 
 
+def check_same_protocol(versions: Iterable[str]) -> str | None:
+    """The one protocol version of records about to be ranked together; ``FrbenchError`` if they differ."""
+    from frbench.errors import FrbenchError
+
+    found = sorted(set(versions))
+    if len(found) > 1:
+        raise FrbenchError(f"refusing to rank records of protocol versions {', '.join(found)} together: "
+                           "a success rate means something else under each version")
+    return found[0] if found else None
+
+
 def rank_key(scores: Mapping, submitted: str, record_id: str) -> tuple:
     """Sort key: overall success descending, gap ascending (none last), then time, then id."""
     gap = scores.get("sim_to_sim_gap")
     return (-scores["overall"], gap is None, gap if gap is not None else 0.0, submitted, record_id)
+
+
+# --------------------------------------------------------------------------- intervals
+
+
+@lru_cache(maxsize=256)
+def _replicates(fingerprint: tuple) -> tuple[tuple, np.ndarray]:
+    """(sorted cells, bootstrap rates (R, cells)) of a fingerprint ((robot, backend, terrain, level, seed,
+    successes, episodes), ...); cached because every rendering of the board asks again."""
+    cells = [dict(zip(("robot", "backend", "terrain", "level", "seed", "successes", "episodes"), row)) for row in fingerprint]
+    ordered = sorted_cells(cells)
+    return tuple(ordered), bootstrap_rates(ordered)
+
+
+def _fingerprint(cells: Iterable[Mapping]) -> tuple:
+    return tuple(sorted((c["robot"], c["backend"], c["terrain"], c["level"], c["seed"], c["successes"], c["episodes"])
+                        for c in cells))
+
+
+def score_intervals(cells: Sequence[Mapping], *, robot: str | None = None, backend: str | None = None,
+                    terrain: str | None = None) -> dict | None:
+    """95 % stratified-bootstrap intervals [low, high] of the `aggregate` scores of ``cells`` matching the filters
+    (``overall``, ``per_family``, ``per_backend``, ``per_robot``) and of the signed gap MuJoCo − PyBullet
+    (``signed_gap``: [point, low, high], None without both backends); None if no cell matches.
+
+    The replicates are drawn once over all of ``cells`` (`frbench.evaluation.intervals.bootstrap_rates`,
+    seeded), so a filtered score's interval comes from the same resampled cells as the unfiltered one.
+    """
+    ordered, rates = _replicates(_fingerprint(cells))
+    keep = np.array([(robot is None or c["robot"] == robot) and (backend is None or c["backend"] == backend)
+                     and (terrain is None or c["terrain"] == terrain) for c in ordered])
+    if not keep.any():
+        return None
+    chosen = [c for c, k in zip(ordered, keep) if k]
+    sub = rates[:, keep]
+    k = np.array([c["successes"] for c in chosen])
+    n = np.array([c["episodes"] for c in chosen])
+
+    def by(field: str) -> dict:
+        names = sorted({c[field] for c in chosen}, key=str)
+        out = {}
+        for name in names:
+            mask = np.array([c[field] == name for c in chosen])
+            out[name] = list(percentile_interval(sub[:, mask].mean(axis=1), k[mask].sum(), n[mask].sum()))
+        return out
+
+    gaps = sim_to_sim_gaps(chosen, sub)
+    return {
+        "overall": list(percentile_interval(sub.mean(axis=1), k.sum(), n.sum())),
+        "per_family": by("terrain"),
+        "per_backend": by("backend"),
+        "per_robot": by("robot"),
+        "signed_gap": [float(sim_to_sim_gaps(chosen, _points(chosen))[0]), *percentile_interval(gaps)]
+        if gaps is not None else None,
+    }
+
+
+def _points(cells: Sequence[Mapping]) -> np.ndarray:
+    return np.array([[c["successes"] / c["episodes"] for c in cells]])
+
+
+def overlaps(a: Sequence[float] | None, b: Sequence[float] | None) -> bool:
+    """Whether two intervals [low, high] overlap (None never does)."""
+    return a is not None and b is not None and a[0] <= b[1] and b[0] <= a[1]

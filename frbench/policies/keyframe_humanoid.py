@@ -36,21 +36,21 @@ Status (measured; docs/results.md, "G1"): ``frbench evaluate --policy keyframe-h
 --terrains flat,slopes,rough,stairs --levels 1,5,10 --seeds 0,1 --episodes 8 --jobs 2``: 48/384 episodes
 (MuJoCo 26, PyBullet 22; 17/384 without the sit-up), flat ground 47.9 % / 41.7 % (MuJoCo / PyBullet), level-1
 slopes 1/16 and 2/16, level-1 rough ground and stairs 1/16 each in MuJoCo only, none above level 1 there; supine starts 10/62 in
-each simulator (0/62 without the sit-up). The sit-up (session 8, ``situp_note`` in the parameter file) is up
+each simulator (0/62 without the sit-up). The sit-up (the sit-up search, ``situp_note`` in the parameter file) is up
 from 2.9 s, the belly path at ≈ 4.5 s. Held out (flat and slopes, levels 1, 5, 10, seeds 2-3): 38/192 (19 in
 each simulator) against 17/192 without the sit-up; supine starts of flat level-1 seeds 10-21 and 22-33 (not
 searched): the task's success in 11/26 and 16/28 (MuJoCo), 10/26 and 9/28 (PyBullet). Crouch, rise and feedback
-parameters of the belly path: a session-6 search from recorded crouch states in both simulators
-(``rise_note``). Roll and belly-to-crouch parameters: session-7 searches in both simulators (``search``): the
+parameters of the belly path: the rise search from recorded crouch states in both simulators
+(``rise_note``). Roll and belly-to-crouch parameters: the roll searches in both simulators (``search``): the
 motion from the push-up into the crouch takes ≈ 174 control steps (3.5 s), so only starts that are on the belly
 within ≈ 0.6 s can be up by 5 s that way.
 
-The motion the session-4 search found from the belly is not the intended squat rise: the pike tips over
+The motion the first key-frame search found from the belly is not the intended squat rise: the pike tips over
 into a head stand (pelvis upside down at 0.53 m), the robot rolls forward out of it onto its feet into a
-crouch (pelvis about 0.37 m) and rises to about 0.8 m; with the session-4 rise it then mostly fell
+crouch (pelvis about 0.37 m) and rises to about 0.8 m; with that search's rise it then mostly fell
 backwards within 0.5 s. Prone starts that roll onto the back during ``LIE``
 or ``PUSH_*`` (MuJoCo seed 0 episode 4, PyBullet seed 1 episode 0) go into ``ROLL`` (which
-stalled there before session 7's roll search). The task's humanoid test reads the pelvis
+stalled there before the roll search). The task's humanoid test reads the pelvis
 height only: an earlier search with a height-only objective found a hand /
 head stand (pelvis upside down above 0.7 m, then at 0.53 m) that passed it on
 3 of 4 prone starts; the search objective therefore counts only upright

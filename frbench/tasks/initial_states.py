@@ -49,17 +49,27 @@ MAX_REDRAWS = 50
 
 @dataclass
 class FallenStarts:
-    """N drawn starts. base_pos (N, 3) [m], base_quat (N, 4) wxyz, q (N, n_joints) [rad], kinds (N,)."""
+    """N drawn starts. base_pos (N, 3) [m], base_quat (N, 4) wxyz, q (N, n_joints) [rad], kinds (N,).
+
+    ``cell`` (spec, terrain, family, level, seed, episode indices) and ``attempts`` (N,) are set by
+    `draw_starts`: they let `frbench.tasks.start_screening` redraw a start deterministically.
+    """
 
     base_pos: np.ndarray
     base_quat: np.ndarray
     q: np.ndarray
     kinds: list[str]
+    cell: tuple | None = None
+    attempts: np.ndarray | None = None
 
 
-def episode_rng(robot: str, family: str, level: int, seed: int, episode: int) -> np.random.Generator:
-    """The generator of one episode's start: a pure function of the protocol version and the cell."""
-    key = f"{PROTOCOL_VERSION}|{robot}|{family}|{int(level)}|{int(seed)}|{int(episode)}"
+def episode_rng(robot: str, family: str, level: int, seed: int, episode: int, attempt: int = 0,
+                protocol_version: str = PROTOCOL_VERSION) -> np.random.Generator:
+    """The generator of one episode's start: a pure function of the protocol version, the cell and the
+    draw attempt (0 for the first draw; `frbench.tasks.start_screening` redraws with 1, 2, ...)."""
+    key = f"{protocol_version}|{robot}|{family}|{int(level)}|{int(seed)}|{int(episode)}"
+    if attempt:
+        key += f"|redraw {int(attempt)}"
     words = np.frombuffer(hashlib.sha256(key.encode()).digest(), dtype=np.uint32)
     return np.random.default_rng(np.random.SeedSequence(words.tolist()))
 
@@ -156,12 +166,18 @@ def draw_start(spec: RobotSpec, terrain, rng: np.random.Generator) -> tuple[np.n
     return np.array([x, y, z]), quat, q, kind
 
 
-def draw_starts(spec: RobotSpec, terrain, family: str, level: int, seed: int, episodes) -> FallenStarts:
-    """The starts of ``episodes`` (indices) in one (robot, terrain, level, seed) cell."""
-    rows = [draw_start(spec, terrain, episode_rng(spec.name, family, level, seed, e)) for e in episodes]
+def draw_starts(spec: RobotSpec, terrain, family: str, level: int, seed: int, episodes,
+                protocol_version: str = PROTOCOL_VERSION) -> FallenStarts:
+    """The starts of ``episodes`` (indices) in one (robot, terrain, level, seed) cell (an earlier
+    ``protocol_version`` re-draws that version's first draws, e.g. to compare success rules on them)."""
+    episodes = list(episodes)
+    rows = [draw_start(spec, terrain, episode_rng(spec.name, family, level, seed, e, protocol_version=protocol_version))
+            for e in episodes]
     return FallenStarts(
         base_pos=np.array([r[0] for r in rows]),
         base_quat=np.array([r[1] for r in rows]),
         q=np.array([r[2] for r in rows]),
         kinds=[r[3] for r in rows],
+        cell=(spec, terrain, family, int(level), int(seed), tuple(episodes)),
+        attempts=np.zeros(len(episodes), dtype=int),
     )

@@ -8,8 +8,9 @@ training env (`frbench.training.env`) all drive it. One episode:
 1. ``reset(starts)``: place the drawn fallen configurations, settle them for
    ``settle_steps`` control steps (`SETTLE_STEPS` = `SETTLE_SECONDS` in the
    benchmark) with the joints held at the drawn angles on gains scaled by
-   `SETTLE_GAIN_SCALE`, then t = 0 (success tracking and metrics start,
-   displacement is measured from here);
+   `SETTLE_GAIN_SCALE`, redraw the starts that already lie upright
+   (`frbench.tasks.start_screening`), then t = 0 (success tracking and metrics
+   start, displacement and the start surface are measured from here);
 2. ``step(targets)`` `EPISODE_STEPS` times (training: its own episode length):
    targets are joint angles q* [rad] in canonical order, clipped to the joint
    limits, tracked by the backend's PD; each step computes the `StepSignals`
@@ -32,7 +33,8 @@ from frbench.robots.spec import RobotSpec
 from frbench.tasks.initial_states import SETTLE_GAIN_SCALE, SETTLE_SECONDS, FallenStarts
 from frbench.tasks.observations import projected_gravity, proprioception
 from frbench.tasks.protocol import CONTROL_DT, EPISODE_SECONDS
-from frbench.tasks.success import EpisodeMetrics, StepSignals, SuccessTracker
+from frbench.tasks.start_screening import screen_starts
+from frbench.tasks.success import EpisodeMetrics, StartSurface, StepSignals, SuccessTracker, torso_frame
 
 EPISODE_STEPS = int(round(EPISODE_SECONDS / CONTROL_DT))
 SETTLE_STEPS = int(round(SETTLE_SECONDS / CONTROL_DT))
@@ -60,6 +62,9 @@ class RecoveryTask:
         nominal_height: the standing height [m] of the success test, one value or (N,) when robots differ;
             default: the spec's.
         track_metrics: keep the per-episode `EpisodeMetrics` (the benchmark's; training does without).
+        surface_rules: apply protocol 1.1's surface rule (`StartSurface`, on ``terrain``) and a humanoid's
+            torso-tilt rule (`TorsoFrame`); the training env, on a world of many terrain tiles, passes False and
+            its curriculum reads the tilt, height, contact and displacement conditions only.
 
     After ``reset``: ``state`` (`RobotState`), ``contacts`` (`Contacts`), ``params`` (the episode's
     `PhysicsParams`), ``success`` (`SuccessTracker`), ``metrics`` (`EpisodeMetrics` or None),
@@ -70,7 +75,8 @@ class RecoveryTask:
 
     def __init__(self, spec: RobotSpec, backend, terrain, num_envs: int, noise_rng=None,
                  ground_height: Callable[[np.ndarray], np.ndarray] | None = None,
-                 nominal_height: "float | np.ndarray | None" = None, track_metrics: bool = True):
+                 nominal_height: "float | np.ndarray | None" = None, track_metrics: bool = True,
+                 surface_rules: bool = True):
         self.spec = spec
         self.terrain = terrain
         self.num_envs = num_envs
@@ -81,6 +87,9 @@ class RecoveryTask:
         self.ground_height = ground_height or self._height_of_terrain
         self.nominal_height = spec.nominal_height if nominal_height is None else nominal_height
         self.track_metrics = track_metrics
+        self.surface_rules = surface_rules
+        self.torso = torso_frame(spec) if surface_rules else None
+        self.start_surface = None
         self.lower, self.upper = np.asarray(spec.joint_lower), np.asarray(spec.joint_upper)
         self.default_pose = np.asarray(spec.default_pose)
         self.nominal = PhysicsParams.nominal(spec, num_envs)
@@ -95,19 +104,37 @@ class RecoveryTask:
 
         return height_at(self.terrain, xy)
 
-    def reset(self, starts: FallenStarts, params: PhysicsParams | None = None,
-              settle_steps: int = SETTLE_STEPS) -> dict[str, np.ndarray]:
-        """Place and settle the starts (one per environment) under ``params`` (default: the spec's nominal
-        physics), for ``settle_steps`` control steps; return the first observation."""
+    def settle(self, starts: FallenStarts, settle_steps: int = SETTLE_STEPS) -> None:
+        """Place the starts (one per environment) and settle them for ``settle_steps`` control steps with the
+        joints held softly (`settle_params` of ``self.params``)."""
         n = self.num_envs
-        self.params = self.nominal if params is None else params
         self.backend.set_params(settle_params(self.params))
         self.backend.reset(np.arange(n), RobotState.at_rest(starts.base_pos, starts.base_quat, starts.q))
         for _ in range(settle_steps):
             self.backend.step(starts.q)
         self.backend.set_params(self.params)
         self.state, self.contacts = self.backend.state(), self.backend.contacts()
+        self._measure_start()
+
+    def _measure_start(self) -> None:
         self.start_xy = self.state.base_pos[:, :2].copy()
+        if self.surface_rules:
+            self.start_surface = StartSurface(self.terrain, self.start_xy)
+
+    def settled_upright(self) -> np.ndarray:
+        """(N,) whether each settled start already lies within the success test's upright bound."""
+        tracker = SuccessTracker(self.num_envs, self.spec.kind, self.nominal_height)
+        return tracker.up_pose(self._signals(self.contacts))
+
+    def reset(self, starts: FallenStarts, params: PhysicsParams | None = None,
+              settle_steps: int = SETTLE_STEPS) -> dict[str, np.ndarray]:
+        """Place and settle the starts (one per environment) under ``params`` (default: the spec's nominal
+        physics), for ``settle_steps`` control steps, redrawing those already upright (`screen_starts`;
+        ``self.starts`` then holds the starts the episodes run from); return the first observation."""
+        n = self.num_envs
+        self.params = self.nominal if params is None else params
+        self.settle(starts, settle_steps)
+        self.starts = screen_starts(self, starts, settle_steps)
         self.previous_action = np.tile(self.default_pose, (n, 1))
         self.success = SuccessTracker(n, self.spec.kind, self.nominal_height)
         self.metrics = EpisodeMetrics(n, self.spec.n_joints) if self.track_metrics else None
@@ -120,8 +147,21 @@ class RecoveryTask:
         settled fallen starts (displacement is measured from there)."""
         self.backend.reset(ids, state)
         self.state, self.contacts = self.backend.state(), self.backend.contacts()
-        self.start_xy = self.state.base_pos[:, :2].copy()
+        self._measure_start()
         self.settle_diverged[ids] = False
+
+    def _signals(self, contacts) -> StepSignals:
+        """What the success test reads in the current state (``gravity`` is refreshed here)."""
+        s = self.state
+        self.gravity = projected_gravity(s.base_quat)
+        return StepSignals(
+            gravity_z=self.gravity[:, 2],
+            height=s.base_pos[:, 2] - self.ground_height(s.base_pos[:, :2]),
+            body_contact=contacts.group_contact.any(axis=1),
+            displacement=np.linalg.norm(s.base_pos[:, :2] - self.start_xy, axis=1),
+            surface_drop=self.start_surface.drop(s.base_pos[:, :2]) if self.start_surface is not None else None,
+            torso_gravity_z=self.torso.gravity_z(s.base_quat, s.q) if self.torso is not None else None,
+        )
 
     def observation(self) -> dict[str, np.ndarray]:
         """The policy's proprioception (see `frbench.tasks.observations`)."""
@@ -137,19 +177,12 @@ class RecoveryTask:
         self.contacts = contacts = self.backend.contacts()
         diverged = self.backend.diverged | self.settle_diverged
         self.alive = ~diverged
-        displacement = np.linalg.norm(self.state.base_pos[:, :2] - self.start_xy, axis=1)
-        self.gravity = projected_gravity(self.state.base_quat)
-        self.signals = signals = StepSignals(
-            gravity_z=self.gravity[:, 2],
-            height=self.state.base_pos[:, 2] - self.ground_height(self.state.base_pos[:, :2]),
-            body_contact=contacts.group_contact.any(axis=1),
-            displacement=displacement,
-        )
+        self.signals = signals = self._signals(contacts)
         self.success.update(signals, alive=self.alive)
         if self.metrics is not None:
             self.metrics.update(
                 self.state.q, self.state.qd, self.state.tau, self.state.base_angvel[:, 0],
-                contacts.body_force_max, displacement, diverged,
+                contacts.body_force_max, signals.displacement, diverged,
             )
         self.t += 1
 

@@ -1,15 +1,24 @@
-"""The success test and the per-episode metrics, on trajectories of any length.
+"""The success test (protocol 1.1) and the per-episode metrics, on trajectories of any length.
 
-Quadrupeds (docs/protocol.md): at some time within the episode the robot is
-*stably upright* — body tilt at most `MAX_TILT_DEG` from vertical, base at least
-`MIN_HEIGHT_FRACTION` of its nominal height above the terrain beneath it, no
-body part but the feet touching anything — for `HOLD_SECONDS` without a break,
-and its horizontal displacement from the start is under `MAX_DISPLACEMENT` at
-the end of that hold.
+A robot succeeds when, at some time within the episode, it is *stably upright*
+for `HOLD_SECONDS` without a break, and at the end of that hold its horizontal
+displacement from the start is under `MAX_DISPLACEMENT` (docs/protocol.md).
+*Upright* at one control step means all of:
 
-Humanoids use HoST's rule, scaled to the robot: the base rises above
-0.7 m·(nominal/0.78) at some time and never drops below 0.5 m·(nominal/0.78)
-afterwards, with the same displacement limit.
+* tilt: the base's up axis within `MAX_TILT_DEG` of vertical (for a humanoid
+  the pelvis *and* the torso, each within `HUMANOID_MAX_TILT_DEG`);
+* height: the base at least `MIN_HEIGHT_FRACTION` (quadruped) or
+  `HUMANOID_UP_HEIGHT` / `HUMANOID_REFERENCE_HEIGHT` (humanoid) of its nominal
+  height above the terrain beneath it;
+* support: no link but the feet touches anything;
+* surface: the terrain beneath the base is at most `STEP_TOLERANCE_M` below the
+  surface the robot fell on (`StartSurface`): standing on a pit floor, or
+  more than one step below the platform or beam tops it lay on, is not a
+  recovery. The incline of a slope is one surface (no drop is measured there).
+
+Protocol 1.0 read the height from the terrain beneath the base only (a robot on
+a pit floor passed) and used HoST's pelvis-height rule for humanoids (a hand or
+head stand passed); both gaps are closed here.
 
 `EpisodeMetrics` accumulates, per environment and control step: energy
 ∫|τ·q̇|dt [J], smoothness (mean |Δ²q| [rad]), peak non-foot contact force [N],
@@ -29,9 +38,16 @@ MAX_TILT_DEG = 30.0
 MIN_HEIGHT_FRACTION = 0.75
 HOLD_SECONDS = 0.5
 MAX_DISPLACEMENT = 1.0
+#: Humanoid: pelvis height [m] (scaled by nominal height / `HUMANOID_REFERENCE_HEIGHT`) that counts as standing.
 HUMANOID_UP_HEIGHT = 0.7
-HUMANOID_FLOOR_HEIGHT = 0.5
 HUMANOID_REFERENCE_HEIGHT = 0.78
+#: Humanoid: largest tilt of the pelvis and of the torso from vertical [deg] that counts as upright.
+HUMANOID_MAX_TILT_DEG = 30.0
+#: How far below the surface the robot fell on the terrain under its base may lie [m]: one step of the
+#: steepest stairs (level 10, 0.25 m).
+STEP_TOLERANCE_M = 0.25
+#: Radius [m] around the base at t = 0 whose highest terrain point is the surface the robot fell on.
+START_SURFACE_RADIUS_M = 0.15
 HOLD_STEPS = int(round(HOLD_SECONDS / CONTROL_DT))
 
 
@@ -40,16 +56,92 @@ class StepSignals:
     """What the success test and the metrics read at one control step, each with N rows.
 
     Attributes:
-        gravity_z: projected gravity z (N,) (−1 upright).
+        gravity_z: projected gravity z of the base (N,) (−1 upright).
         height: base height above the terrain beneath it (N,) [m].
         body_contact: any non-foot link touches something (N,).
         displacement: horizontal distance of the base from its start (N,) [m].
+        surface_drop: how far the terrain beneath the base lies below the surface the robot fell on (N,) [m]
+            (`StartSurface.drop`); None: not measured (0).
+        torso_gravity_z: projected gravity z of a humanoid's torso (N,) (`TorsoFrame`); None: not measured.
     """
 
     gravity_z: np.ndarray
     height: np.ndarray
     body_contact: np.ndarray
     displacement: np.ndarray
+    surface_drop: np.ndarray | None = None
+    torso_gravity_z: np.ndarray | None = None
+
+
+class StartSurface:
+    """The surface N robots fell on: the highest terrain point within `START_SURFACE_RADIUS_M` of each base at t = 0.
+
+    Args:
+        terrain: a `frbench.terrains.Terrain`.
+        start_xy: (N, 2) base positions at t = 0 [m].
+    """
+
+    def __init__(self, terrain, start_xy: np.ndarray):
+        from frbench.terrains import support_height
+
+        self.terrain = terrain
+        self.incline = any(box.rotation()[2, 2] != 1.0 for box in terrain.boxes)
+        self.z = np.array([support_height(terrain, xy, START_SURFACE_RADIUS_M) for xy in np.asarray(start_xy)])
+
+    def drop(self, base_xy: np.ndarray) -> np.ndarray:
+        """(N,) [m] the start surface's height minus the terrain height beneath ``base_xy`` (N, 2); 0 on an incline."""
+        from frbench.terrains import height_at
+
+        if self.incline:
+            return np.zeros(len(base_xy))
+        return self.z - height_at(self.terrain, base_xy)
+
+
+class TorsoFrame:
+    """A humanoid torso's orientation from the base orientation and the joints between them (forward kinematics).
+
+    Args:
+        spec: the robot; its simulation URDF gives the chain from the root link to ``link``.
+        link: the torso link's name.
+    """
+
+    def __init__(self, spec, link: str = "torso_link"):
+        from frbench.robots.sim_urdf import sim_robot_file
+        from frbench.robots.urdf_tree import parse_urdf
+
+        tree = parse_urdf(sim_robot_file(spec).path)
+        chain, child = [], link
+        while child != tree.root:
+            joint = next(j for j in tree.joints.values() if j.child == child)
+            chain.append(joint)
+            child = joint.parent
+        self.chain = chain[::-1]
+        self.index = [spec.joint_names.index(j.name) if j.type in ("revolute", "continuous") else -1 for j in self.chain]
+
+    def gravity_z(self, base_quat: np.ndarray, q: np.ndarray) -> np.ndarray:
+        """(N,) projected gravity z of the torso: −(world z of the torso's z axis); base_quat (N, 4) wxyz, q (N, n)."""
+        from frbench.robots.kinematics import _axis_rotation
+        from frbench.tasks.initial_states import quat_to_matrix
+
+        out = np.empty(len(q))
+        for i in range(len(q)):
+            rotation = quat_to_matrix(base_quat[i])
+            for joint, k in zip(self.chain, self.index):
+                rotation = rotation @ joint.origin[:3, :3]
+                if k >= 0:
+                    rotation = rotation @ _axis_rotation(joint.axis, q[i, k])
+            out[i] = -rotation[2, 2]
+        return out
+
+
+def torso_frame(spec) -> TorsoFrame | None:
+    """A humanoid's `TorsoFrame` (its ``torso_link``), or None for quadrupeds and humanoids without that link."""
+    if spec.kind != "humanoid":
+        return None
+    try:
+        return TorsoFrame(spec)
+    except StopIteration:
+        return None
 
 
 class SuccessTracker:
@@ -62,32 +154,42 @@ class SuccessTracker:
         self.success = np.zeros(num_envs, dtype=bool)
         self.time_to_recover = np.full(num_envs, np.nan)
         self._streak = np.zeros(num_envs, dtype=int)
-        self._reached = np.full(num_envs, -1, dtype=int)  # humanoid: step the base first got up
-        self._fell_after = np.zeros(num_envs, dtype=bool)
         self._step = 0
-        scale = nominal_height / HUMANOID_REFERENCE_HEIGHT
-        self.up_height, self.floor_height = HUMANOID_UP_HEIGHT * scale, HUMANOID_FLOOR_HEIGHT * scale
+        if kind == "humanoid":
+            self.min_height = HUMANOID_UP_HEIGHT / HUMANOID_REFERENCE_HEIGHT * np.asarray(nominal_height)
+            self.max_tilt_deg = HUMANOID_MAX_TILT_DEG
+        else:
+            self.min_height = MIN_HEIGHT_FRACTION * np.asarray(nominal_height)
+            self.max_tilt_deg = MAX_TILT_DEG
+
+    @property
+    def up_height(self) -> "float | np.ndarray":
+        """Humanoid: the pelvis height [m] that counts as standing (the key-frame search's objective reads it)."""
+        return self.min_height
+
+    @property
+    def floor_height(self) -> "float | np.ndarray":
+        """Humanoid: protocol 1.0's floor, 0.5 m scaled by nominal height / 0.78 m (the key-frame search's objective)."""
+        return 0.5 / HUMANOID_REFERENCE_HEIGHT * np.asarray(self.nominal_height)
 
     def up_pose(self, s: StepSignals) -> np.ndarray:
-        """(N,) tilt and height conditions of the quadruped test (body contact not considered)."""
-        tilt_ok = s.gravity_z <= -np.cos(np.radians(MAX_TILT_DEG))
-        return tilt_ok & (s.height >= MIN_HEIGHT_FRACTION * self.nominal_height)
+        """(N,) the tilt, height and surface conditions (body contact not considered): the *upright bound*."""
+        cos_bound = np.cos(np.radians(self.max_tilt_deg))
+        ok = (s.gravity_z <= -cos_bound) & (s.height >= self.min_height)
+        if s.torso_gravity_z is not None:
+            ok &= s.torso_gravity_z <= -cos_bound
+        if s.surface_drop is not None:
+            ok &= s.surface_drop <= STEP_TOLERANCE_M
+        return ok
 
     def upright(self, s: StepSignals) -> np.ndarray:
-        """(N,) the quadruped stability condition at this step."""
+        """(N,) the stability condition at this step."""
         return self.up_pose(s) & ~s.body_contact
 
     def update(self, s: StepSignals, alive: np.ndarray | None = None) -> None:
         """Feed one control step (``alive`` False for diverged episodes, which cannot succeed)."""
         alive = np.ones_like(self.success) if alive is None else alive
         self._step += 1
-        if self.kind == "humanoid":
-            newly_up = (self._reached < 0) & (s.height > self.up_height) & alive & (s.displacement < MAX_DISPLACEMENT)
-            self._reached[newly_up] = self._step
-            self._fell_after |= (self._reached >= 0) & (s.height < self.floor_height)
-            self.success = (self._reached >= 0) & ~self._fell_after & alive
-            self.time_to_recover = np.where(self.success, self._reached * CONTROL_DT, np.nan)
-            return
         up = self.upright(s) & alive
         self._streak = np.where(up, self._streak + 1, 0)
         done = (self._streak >= HOLD_STEPS) & ~self.success & (s.displacement < MAX_DISPLACEMENT)

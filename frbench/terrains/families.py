@@ -50,9 +50,10 @@ FAMILY_SUMMARIES: dict[str, str] = {
     "stairs": "A straight flight, steps up and steps down from the spawn; the robot lies across a step edge, "
     "facing up or down the flight.",
     "stones": "Axis-aligned rectangular blocks of random height scattered on the floor, three of them under the robot.",
-    "gaps": "A grid of platforms separated by gaps over a pit; the robot's base lies beside a gap edge, "
-    "its body overhanging the gap.",
-    "beams": "Parallel narrow beams suspended over a pit; the robot lies across the beams.",
+    "gaps": "A grid of platforms separated by gaps over a pit; the robot lies on a platform, near its centre at "
+    "level 1 and beside a gap edge, its body overhanging the gap, at level 10.",
+    "beams": "Parallel beams suspended over a pit, narrower and further apart with the level; the robot lies across "
+    "them, centred on one wide beam at level 1 and anywhere across the beams at level 10.",
 }
 
 
@@ -94,7 +95,7 @@ _PARAMETERS: dict[str, tuple[LevelParameter, ...]] = {
     ),
     "slopes": (_P("slope_deg", 4.0, 40.0, "incline angle", digits=1),),
     "stairs": (
-        _P("step_height_m", 0.05, 0.25, "rise of every step"),
+        _P("step_height_m", 0.02, 0.25, "rise of every step"),
         _P("tread_m", 0.31, 0.31, "run of every step"),
         _P(
             "stair_angle_deg", 0.0, 0.0, "atan(step_height / tread)", digits=1,
@@ -112,14 +113,16 @@ _PARAMETERS: dict[str, tuple[LevelParameter, ...]] = {
     "gaps": (
         _P("gap_width_m", 0.10, 0.80, "width of every gap between platforms"),
         _P("gap_depth_m", 0.20, 1.00, "drop from the platform tops to the pit floor"),
-        _P("base_to_edge_max_m", 0.25, 0.25, "largest distance from the spawn to the nearest gap edge"),
-        _P("platform_min_m", 1.0, 1.0, "smallest platform side"),
-        _P("platform_max_m", 1.4, 1.4, "largest platform side"),
+        _P("base_to_edge_min_m", 0.80, 0.05, "smallest distance from the spawn to the nearest gap edge"),
+        _P("base_to_edge_max_m", 1.00, 0.25, "largest distance from the spawn to the nearest gap edge"),
+        _P("platform_min_m", 2.0, 1.0, "smallest platform side"),
+        _P("platform_max_m", 2.4, 1.4, "largest platform side"),
     ),
     "beams": (
-        _P("beam_width_m", 0.50, 0.15, "width of every beam (narrower is harder)"),
-        _P("beam_gap_m", 0.10, 0.35, "clear gap between neighbouring beams"),
+        _P("beam_width_m", 1.20, 0.15, "width of every beam (narrower is harder)"),
+        _P("beam_gap_m", 0.05, 0.35, "clear gap between neighbouring beams"),
         _P("pit_depth_m", 0.30, 1.00, "drop from the beam tops to the pit floor"),
+        _P("spawn_offset_max_m", 0.0, 0.25, "largest distance from the spawn to the centre line of the beam under it"),
         _P("beam_thickness_m", 0.10, 0.10, "vertical thickness of a suspended beam"),
     ),
 }
@@ -148,8 +151,9 @@ def parameter_specs(family: str) -> tuple[LevelParameter, ...]:
 def level_parameters(family: str, level: int) -> dict[str, float]:
     """The deterministic parameters of one level (units in the key suffixes).
 
-    Every parameter is monotone in the level: non-decreasing, except
-    ``beam_width_m``, which decreases (narrower beams are harder).
+    Every parameter is monotone in the level, each in the direction that makes the scene harder:
+    non-decreasing, except ``beam_width_m``, ``base_to_edge_*`` and ``platform_*``, which decrease
+    (narrower beams, a spawn nearer the edge of a smaller platform are harder).
     """
     _check_family(family)
     _check_level(level)
@@ -314,7 +318,7 @@ def _intervals(rng: np.random.Generator, first: tuple[float, float], gap: float,
 def _gaps(p: dict[str, float], rng: np.random.Generator) -> _Layout:
     gap, depth = p["gap_width_m"], p["gap_depth_m"]
     lo, hi = p["platform_min_m"], p["platform_max_m"]
-    edge = rng.uniform(0.05, p["base_to_edge_max_m"])  # spawn → the gap edge at +x
+    edge = rng.uniform(p["base_to_edge_min_m"], p["base_to_edge_max_m"])  # spawn → the gap edge at +x
     w0 = rng.uniform(lo, hi)
     xs = _intervals(rng, (edge - w0, edge), gap, lo, hi)
     v = rng.uniform(lo / 2, hi / 2, size=2)  # the spawn platform's y edges
@@ -330,7 +334,8 @@ def _gaps(p: dict[str, float], rng: np.random.Generator) -> _Layout:
 def _beams(p: dict[str, float], rng: np.random.Generator) -> _Layout:
     width, gap, depth, thick = p["beam_width_m"], p["beam_gap_m"], p["pit_depth_m"], p["beam_thickness_m"]
     pitch = width + gap
-    phase = rng.uniform(-pitch / 2, pitch / 2)  # where the spawn falls relative to the beams
+    offset = min(p["spawn_offset_max_m"], pitch / 2)
+    phase = rng.uniform(-offset, offset)  # the centre line of the beam under the spawn
     k0 = math.ceil((-TILE_HALF_M + width / 2 - phase) / pitch)
     k1 = math.floor((TILE_HALF_M - width / 2 - phase) / pitch)
     boxes = [Box((phase + k * pitch, 0.0, -thick / 2), (width / 2, TILE_HALF_M, thick / 2)) for k in range(k0, k1 + 1)]

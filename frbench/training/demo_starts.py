@@ -2,7 +2,7 @@
 
 Rolling a quadruped from its back onto its belly is a rare event for a
 Gaussian policy that starts by flailing; on 2 CPU cores PPO sees too few of
-them to learn it (session 1: 0 % from supine after 9 M steps). This module
+them to learn it (without these starts: 0 % from supine after 9 M steps). This module
 records, on the training batch itself, the states that the model-based
 ``scripted`` controller passes through while it gets up — every morphology on
 its own curriculum tile — and lets a fraction of the following training

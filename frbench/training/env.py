@@ -84,7 +84,8 @@ class RecoveryTrainingEnv(VecEnv):
         self.raster = HeightRaster(self.grid, sorted(self.grid.tiles))
         backend = make_backend(cfg.backend, self.spec, n, terrain=self.grid.world, variants=self.robots.variants)
         self.task = RecoveryTask(self.spec, backend, self.grid.world, n, ground_height=self._ground_height,
-                                 nominal_height=self.robots.nominal_height, track_metrics=False)
+                                 nominal_height=self.robots.nominal_height, track_metrics=False,
+                                 surface_rules=False)
         self.backend = backend
         self.reward_cfg = with_joint_velocity_limits(cfg.reward, self.spec.urdf_path, self.spec.joint_names)
         self.assist = AssistForce(cfg.assist_force, cfg.assist_until, self.robots.env_masses)

@@ -1,8 +1,8 @@
 """Which sampled morphologies can stand at all: the training set keeps only those.
 
 The paper's morphology table reaches 21–47 kg robots, while the joint torque
-limits and the training gains stay those of a Go2-sized dog. Measured in
-session 2: with the training's Kp ∈ [50, 80], half of 64 sampled robots held
+limits and the training gains stay those of a Go2-sized dog. Measured
+before this filter: with the training's Kp ∈ [50, 80], half of 64 sampled robots held
 at their default pose sank below 75 % of their standing height with their
 bodies on the ground — episodes no policy can win, which only dilute PPO's
 samples. A morphology is kept when, held at its default pose by the PD at the
