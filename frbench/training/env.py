@@ -453,16 +453,10 @@ class RecoveryTrainingEnv(VecEnv):
         return o_t
 
     def _com_xy(self) -> np.ndarray:
-        """Whole-body CoM minus base position, in the base yaw frame, (N, 2) [m] (Pinocchio)."""
-        import pinocchio
-
+        """Whole-body CoM minus base position, in the base yaw frame, (N, 2) [m] (the backend's vectorised
+        `whole_body_com`, payload included; cross-checked against Pinocchio in tests/test_backends.py)."""
         s = self.state
-        out = np.zeros((self.num_envs, 2))
-        for i in range(self.num_envs):
-            k = self.assignment[i]
-            config = ground_truth.configuration(self._pin[k], s.base_pos[i], s.base_quat[i], s.q[i])
-            out[i] = np.asarray(pinocchio.centerOfMass(self._pin[k].model, self._pin_data[k], config))[:2]
-        delta = out - s.base_pos[:, :2]
+        delta = self.backend.whole_body_com()[:, :2] - s.base_pos[:, :2]
         yaw = _yaw(s.base_quat)
         c, si = np.cos(yaw), np.sin(yaw)
         return np.stack([c * delta[:, 0] + si * delta[:, 1], -si * delta[:, 0] + c * delta[:, 1]], axis=1)
