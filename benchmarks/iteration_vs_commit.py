@@ -5,8 +5,10 @@ Two worker processes, one per code base (``PYTHONPATH`` = this checkout and
 the default FR-Net training env (``TrainEnvConfig(num_envs=N)``) and rsl-rl's
 runner once, run one warm-up iteration, then take turns: each round times
 ``--iterations`` iterations of this checkout, then of the base, so that the
-machine's load falls on both alike. Prints each round's env steps/s and the
-median ratio ``iteration this / base: R``.
+machine's load falls on both alike. Prints each round's env steps per second
+of wall-clock and per second of the worker's CPU time (all its threads: a
+proxy that depends less on what else the machine runs), and the median ratios
+``iteration this / base: R`` (wall-clock) and ``iteration this / base, CPU time: R``.
 
 Run: ``python benchmarks/iteration_vs_commit.py --base /tmp/base-6f84212 [--envs 256] [--repeats 3]``.
 """
@@ -21,7 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-#: The worker: builds env + runner, then answers each line "go K" with the env steps/s of K iterations.
+#: The worker: builds env + runner, then answers each line "go K" with the env steps per wall-clock second and
+#: per CPU second of K iterations.
 WORKER = """
 import sys, time, torch
 torch.set_num_threads(1)
@@ -36,9 +39,10 @@ runner.learn(1)
 print("ready", flush=True)
 for line in sys.stdin:
     k = int(line.split()[1])
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     runner.learn(k)
-    print(k * cfg["num_steps_per_env"] * envs / (time.perf_counter() - start), flush=True)
+    steps = k * cfg["num_steps_per_env"] * envs
+    print(steps / (time.perf_counter() - start), steps / (time.process_time() - cpu), flush=True)
 """
 
 
@@ -49,11 +53,12 @@ def start_worker(code_root: Path, envs: int) -> subprocess.Popen:
                             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
 
 
-def ask(worker: subprocess.Popen, iterations: int) -> float:
-    """Env steps/s of ``iterations`` iterations in ``worker``."""
+def ask(worker: subprocess.Popen, iterations: int) -> tuple[float, float]:
+    """(env steps per wall-clock second, per CPU second) of ``iterations`` iterations in ``worker``."""
     worker.stdin.write(f"go {iterations}\n")
     worker.stdin.flush()
-    return float(worker.stdout.readline())
+    wall, cpu = worker.stdout.readline().split()
+    return float(wall), float(cpu)
 
 
 def wait_ready(worker: subprocess.Popen, name: str) -> None:
@@ -78,13 +83,16 @@ def main() -> None:
     try:
         for name, worker in workers.items():
             wait_ready(worker, name)
-        ratios = []
+        ratios, cpu_ratios = [], []
         for repeat in range(args.repeats):
             rates = {name: ask(worker, args.iterations) for name, worker in workers.items()}
-            ratios.append(rates["this"] / rates["base"])
-            print(f"round {repeat}: this {rates['this']:.0f}, base {rates['base']:.0f} env steps/s "
-                  f"(ratio {ratios[-1]:.2f})", flush=True)
+            ratios.append(rates["this"][0] / rates["base"][0])
+            cpu_ratios.append(rates["this"][1] / rates["base"][1])
+            print(f"round {repeat}: this {rates['this'][0]:.0f}, base {rates['base'][0]:.0f} env steps/s "
+                  f"(ratio {ratios[-1]:.2f}); per CPU second this {rates['this'][1]:.0f}, base "
+                  f"{rates['base'][1]:.0f} (ratio {cpu_ratios[-1]:.2f})", flush=True)
         print(f"iteration this / base: {np.median(ratios):.2f}")
+        print(f"iteration this / base, CPU time: {np.median(cpu_ratios):.2f}")
     finally:
         for worker in workers.values():
             worker.stdin.close()
