@@ -241,9 +241,39 @@ def test_ppo_loss_does_not_reach_the_estimator_and_its_own_loss_does():
     PPO.update(alg)
     assert all(torch.equal(before[k], v) for k, v in est.state_dict().items())
     assert any(not torch.equal(policy_before[k], v) for k, v in actor.mlp.state_dict().items())
-    losses = alg.update_estimator()
-    assert set(losses) == {"estimator", "estimator_mass", "estimator_contact", "estimator_recon", "estimator_kl"}
+
+
+def test_the_estimator_trains_on_ppos_mini_batches_with_one_encoder_pass_each(monkeypatch):
+    monkeypatch.setenv("FRBENCH_UPDATE_THREADS", "2")
+    env, runner = make_runner("frnet", num_envs=16)
+    alg: EstimatorPPO = runner.alg
+    est = alg.estimator
+    passes, threads = [], []
+
+    def record(*_):
+        passes.append(torch.is_grad_enabled())
+        threads.append(torch.get_num_threads())
+
+    est.encoder.register_forward_hook(record)
+    torch.set_num_threads(1)
+    with torch.inference_mode():
+        o = env.get_observations()
+        for _ in range(runner.cfg["num_steps_per_env"]):
+            o, r, d, x = env.step(alg.act(o))
+            alg.process_env_step(o, r, d, x)
+        alg.compute_returns(o)
+    rollout_passes = len(passes)
+    before = {k: v.clone() for k, v in est.state_dict().items()}
+    losses = alg.update()
+    updates = alg.num_learning_epochs * alg.num_mini_batches
+    assert passes[rollout_passes:] == [True] * updates  # the actor's pass of each mini-batch, nothing else
+    assert threads[:rollout_passes] == [1] * rollout_passes and threads[rollout_passes:] == [2] * updates
+    assert torch.get_num_threads() == 1  # restored for the next rollout
+    assert set(losses) >= {"estimator", "estimator_mass", "estimator_contact", "estimator_recon", "estimator_kl"}
     assert any(not torch.equal(before[k], v) for k, v in est.state_dict().items())
+    assert alg.storage.observations.get("estimator_next_obs", None) is None  # the update's groups are gone
+    with pytest.raises(ValueError, match="estimator_epochs = 3"):
+        make_runner("frnet", num_envs=16, overrides={"algorithm": {"estimator_epochs": 3}})
 
 
 def test_estimator_batch_pairs_each_step_with_the_next_observation():
@@ -256,15 +286,14 @@ def test_estimator_batch_pairs_each_step_with_the_next_observation():
             obs, r, d, x = env.step(alg.act(obs))
             alg.process_env_step(obs, r, d, x)
         alg.compute_returns(obs)
-    history, targets, next_o, valid = alg.estimator_batch()
+    next_o, valid = alg.estimator_targets()
     stored, dones = alg.storage.observations, alg.storage.dones.squeeze(-1)
     norm = alg.actor.normalize_obs
-    assert history.shape == (48, 5 * D) and next_o.shape == (48, D) and set(targets) == {"mass", "contact"}
-    # row t·N + i holds o_{t+1} of env i
-    torch.testing.assert_close(next_o[:44], norm(stored["policy"][1:]).flatten(0, 1))
-    torch.testing.assert_close(next_o[44:], norm(obs["policy"]))  # the last step's successor: compute_returns' obs
-    assert torch.equal(valid, dones.flatten() == 0) and 0 < int((~valid).sum()) < 48
-    torch.testing.assert_close(targets["mass"], stored["mass"].flatten(0, 1))
+    assert next_o.shape == (12, 4, D) and valid.shape == (12, 4)
+    # step t of env i holds o_{t+1} of env i
+    torch.testing.assert_close(next_o[:11], norm(stored["policy"][1:]))
+    torch.testing.assert_close(next_o[11], norm(obs["policy"]))  # the last step's successor: compute_returns' obs
+    assert torch.equal(valid, (dones == 0).float()) and 0 < int((valid == 0).sum()) < 48
 
 
 # --- checkpoints and export ---

@@ -106,8 +106,28 @@ def _add_joint_actuator(mj: mujoco.MjSpec, name: str, joint: str, gain: float, b
 
 
 def build_model(spec: RobotSpec, terrain, friction: float = 1.0) -> mujoco.MjModel:
-    """Compiled model of ``spec`` on ``terrain``."""
-    return build_spec(spec, terrain, friction).compile()
+    """Compiled model of ``spec`` on ``terrain``, from frbench's cache when it was compiled before.
+
+    The entry (MuJoCo's binary model, exact) is keyed by the spec, its simulation URDF's text, the
+    terrain, the friction, the MuJoCo version and the source of the modules that build the model.
+    """
+    from frbench.content_cache import cached_bytes, content_key, object_key, source_key
+
+    sim = sim_robot_file(spec)
+    key = content_key(spec, sim.path.read_bytes(), object_key(terrain), float(friction), mujoco.__version__,
+                      source_key(__name__, "frbench.terrains.build", "frbench.robots.sim_urdf"))
+
+    def compile_model() -> bytes:
+        model = build_spec(spec, terrain, friction).compile()
+        buffer = np.zeros(mujoco.mj_sizeModel(model), dtype=np.uint8)
+        mujoco.mj_saveModel(model, None, buffer)
+        return buffer.tobytes()
+
+    return cached_bytes("mujoco-models", key, ".mjb", compile_model, _model_from_bytes)
+
+
+def _model_from_bytes(data: bytes) -> mujoco.MjModel:
+    return mujoco.MjModel.from_binary_path("model.mjb", {"model.mjb": data})
 
 
 def joint_addresses(model: mujoco.MjModel, spec: RobotSpec) -> tuple[np.ndarray, np.ndarray]:

@@ -60,7 +60,12 @@ def _c_stdout_silenced():
 
 
 def _rotation(client: BulletClient, xyzw) -> np.ndarray:
-    return np.array(client.getMatrixFromQuaternion(xyzw)).reshape(3, 3)
+    return np.array(p.getMatrixFromQuaternion(xyzw)).reshape(3, 3)
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a × b of two 3-vectors (``np.cross``'s arithmetic, without its overhead on one pair)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
 
 def _joint_arrays(states) -> tuple[np.ndarray, np.ndarray]:
@@ -87,6 +92,7 @@ class _Simulation:
         with _c_stdout_silenced():
             self.client = BulletClient(connection_mode=p.DIRECT)
         c = self.client
+        self.cid = c._client  # the hot loops call pybullet directly: BulletClient wraps each call anew
         c.setGravity(0, 0, -9.81)
         c.setPhysicsEngineParameter(fixedTimeStep=spec.physics_dt, numSubSteps=0)
         self.terrain_bodies = add_to_bullet(c, terrain, 1.0)
@@ -186,15 +192,16 @@ class PybulletBackend:
         for i, sim in enumerate(self.sims):
             if self.diverged[i]:
                 continue
-            c, robot, joints, target = sim.client, sim.robot, sim.joints, targets[i]
+            cid, robot, joints, target = sim.cid, sim.robot, sim.joints, targets[i]
             force = self._base_force[i].tolist() if self._base_force[i].any() else None
             for _ in range(self.substeps):  # the hot loop: keep it lean
-                q, qd = _joint_arrays(c.getJointStates(robot, joints))
+                q, qd = _joint_arrays(p.getJointStates(robot, joints, physicsClientId=cid))
                 tau = actuator_torque(params, limits, target, q, qd, i)
-                c.setJointMotorControlArray(robot, joints, p.TORQUE_CONTROL, forces=tau.tolist())
+                p.setJointMotorControlArray(robot, joints, p.TORQUE_CONTROL, forces=tau.tolist(), physicsClientId=cid)
                 if force is not None:  # Bullet clears external forces after every stepSimulation
-                    c.applyExternalForce(robot, -1, force, c.getBasePositionAndOrientation(robot)[0], p.WORLD_FRAME)
-                c.stepSimulation()
+                    base = p.getBasePositionAndOrientation(robot, physicsClientId=cid)[0]
+                    p.applyExternalForce(robot, -1, force, base, p.WORLD_FRAME, physicsClientId=cid)
+                p.stepSimulation(physicsClientId=cid)
             self._tau[i] = tau
         self._state = self._read_state()
         self.diverged |= divergence_mask(self._state)
@@ -206,17 +213,17 @@ class PybulletBackend:
             base_angvel=np.zeros((n, 3)), q=np.zeros((n, nj)), qd=np.zeros((n, nj)), tau=self._tau.copy(),
         )
         for i, sim in enumerate(self.sims):
-            c = sim.client
-            com_pos, com_orn = c.getBasePositionAndOrientation(sim.robot)
-            v_com, omega = c.getBaseVelocity(sim.robot)
-            rot = _rotation(c, com_orn) @ sim.inertial_rot_inv  # root link frame orientation
+            cid = sim.cid
+            com_pos, com_orn = p.getBasePositionAndOrientation(sim.robot, physicsClientId=cid)
+            v_com, omega = p.getBaseVelocity(sim.robot, physicsClientId=cid)
+            rot = _rotation(sim.client, com_orn) @ sim.inertial_rot_inv  # root link frame orientation
             pos = np.asarray(com_pos) - rot @ sim.inertial_pos
             omega = np.asarray(omega)
             out.base_pos[i] = pos
             out.base_quat[i] = _matrix_to_wxyz(rot)
-            out.base_linvel[i] = np.asarray(v_com) + np.cross(omega, pos - np.asarray(com_pos))
+            out.base_linvel[i] = np.asarray(v_com) + _cross(omega, pos - np.asarray(com_pos))
             out.base_angvel[i] = rot.T @ omega
-            out.q[i], out.qd[i] = _joint_arrays(c.getJointStates(sim.robot, sim.joints))
+            out.q[i], out.qd[i] = _joint_arrays(p.getJointStates(sim.robot, sim.joints, physicsClientId=cid))
         return out
 
     def state(self) -> RobotState:
@@ -252,7 +259,7 @@ class PybulletBackend:
         """Net contact force per link from ``getContactPoints`` (world frame), summarised by group."""
         link_force = np.zeros((self.num_envs, len(self.link_names), 3))
         for i, sim in enumerate(self.sims):
-            points = sim.client.getContactPoints(bodyA=sim.robot)
+            points = p.getContactPoints(bodyA=sim.robot, physicsClientId=sim.cid)
             if not points:
                 continue
             rows = [sim.row_of_link[point[3]] for point in points]

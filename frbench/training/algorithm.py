@@ -1,24 +1,34 @@
 """Algorithms for rsl-rl's ``OnPolicyRunner``: PPO with a jointly trained estimator, and RMA's phase 2.
 
 * :class:`EstimatorPPO` (``"frbench.training.algorithm:EstimatorPPO"``): rsl-rl's
-  PPO, then the estimator's own epochs over the same rollout with its own Adam
-  optimiser. PPO's optimiser holds every actor/critic parameter *except* the
+  PPO, the estimator trained on PPO's own mini-batches: the actor's forward pass
+  of each mini-batch runs the encoder once, with gradients, and keeps its
+  output; the policy reads the features detached, and after PPO's step on that
+  mini-batch the estimator takes one step of its own Adam optimiser on the same
+  rows. PPO's optimiser holds every actor/critic parameter *except* the
   estimator's, and the estimator's optimiser only the estimator's: the two
-  losses never mix (the policy reads the estimates detached).
+  losses never mix.
 * :class:`RMAAdaptation` (``"frbench.training.algorithm:RMAAdaptation"``): RMA
   phase 2 — the phase-1 actor acts with ẑ from its adaptation module, which is
   regressed on z = μ(e_t) over each rollout (supervised, on-policy).
 
-Estimator batches, from ``storage.observations`` of shape (T, N, …):
-input the history at t; targets the ``mass`` / ``contact`` / ``velocity`` groups
-at t; reconstruction target the normalised o_{t+1} = the o_t group of the next
-transition (for t = T−1, the observation that ``compute_returns`` received).
+Both run their update with torch on every core (`update_threads`): the
+simulator's threads are idle then; the rollout keeps torch at one thread.
+
+Estimator rows, from ``storage.observations`` of shape (T, N, …): input the
+history at t; targets the ``mass`` / ``contact`` / ``velocity`` groups at t;
+reconstruction target the normalised o_{t+1} = the o_t group of the next
+transition (for t = T−1, the observation that ``compute_returns`` received),
+added to the storage as the group ``NEXT_OBS_GROUP`` (validity
+``NEXT_VALID_GROUP``) for the update, so that PPO's mini-batches carry it.
 Pairs with ``storage.dones[t] = 1`` cross an episode end (o_{t+1} is already
 the next episode's first frame) and are left out of the reconstruction term.
 """
 
 from __future__ import annotations
 
+import os
+from contextlib import contextmanager
 from itertools import chain
 
 import torch
@@ -34,15 +44,44 @@ from frbench.training.models import EstimatorActor, RMAActor
 
 #: Estimator head → observation group holding its target (the environment contract).
 TARGET_GROUPS = {"mass": "mass", "contact": "contact", "velocity": "velocity"}
+#: Groups added to the rollout storage for the update only: normalised o_{t+1} (D) and its validity (1).
+NEXT_OBS_GROUP, NEXT_VALID_GROUP = "estimator_next_obs", "estimator_next_valid"
+
+
+def update_threads() -> int:
+    """Torch threads for an update: ``$FRBENCH_UPDATE_THREADS``, else every core — unless the machine is
+    oversubscribed (1-minute load average above the core count: other processes hold the cores), then 1.
+
+    Measured on 2 cores at a load of ~15 (other jobs running): a toy-env training test took 115 s with 1
+    update thread and did not finish in 10 minutes with 2 (OpenMP threads waiting on descheduled peers).
+    """
+    given = os.environ.get("FRBENCH_UPDATE_THREADS")
+    if given:
+        return max(1, int(given))
+    cores = max(1, os.cpu_count() or 1)
+    return 1 if os.getloadavg()[0] > cores else cores
+
+
+@contextmanager
+def torch_threads(count: int):
+    """Run the block with ``torch.set_num_threads(count)``, then restore the previous count."""
+    previous = torch.get_num_threads()
+    torch.set_num_threads(count)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(previous)
 
 
 class EstimatorPPO(PPO):
-    """PPO + the estimator's supervised epochs; see the module docstring.
+    """PPO + the estimator on PPO's mini-batches; see the module docstring.
 
     Args (beyond PPO's): ``estimator_learning_rate`` (Adam, fixed),
-    ``estimator_epochs`` and ``estimator_mini_batches`` (passes over the
-    rollout, default as PPO's 5 × 4), ``estimator_max_grad_norm``.
-    With an actor that has no estimator this is exactly rsl-rl's PPO.
+    ``estimator_max_grad_norm``. ``estimator_epochs`` and
+    ``estimator_mini_batches`` are PPO's (``num_learning_epochs``,
+    ``num_mini_batches``): configurations may name them, with those values only.
+    With an actor that has no estimator this is exactly rsl-rl's PPO (its update
+    on every core).
     """
 
     def __init__(
@@ -52,19 +91,24 @@ class EstimatorPPO(PPO):
         storage,
         *,
         estimator_learning_rate: float = 1e-3,
-        estimator_epochs: int = 5,
-        estimator_mini_batches: int = 4,
+        estimator_epochs: int | None = None,
+        estimator_mini_batches: int | None = None,
         estimator_max_grad_norm: float = 1.0,
         learning_rate: float = 1e-3,
         optimizer: str = "adam",
         **ppo_kwargs,
     ) -> None:
         super().__init__(actor, critic, storage, learning_rate=learning_rate, optimizer=optimizer, **ppo_kwargs)
+        for name, value, ppo_value in (("estimator_epochs", estimator_epochs, self.num_learning_epochs),
+                                       ("estimator_mini_batches", estimator_mini_batches, self.num_mini_batches)):
+            if value is not None and value != ppo_value:
+                raise ValueError(f"{name} = {value}: the estimator trains on PPO's mini-batches, so it must equal "
+                                 f"PPO's {ppo_value} (or be left out)")
         self.estimator = getattr(self._raw_actor, "estimator", None)
-        self.estimator_epochs = estimator_epochs
-        self.estimator_mini_batches = estimator_mini_batches
         self.estimator_max_grad_norm = estimator_max_grad_norm
         self._next_obs: TensorDict | None = None
+        self._estimator_sums: dict[str, float] = {}
+        self._estimator_steps = 0
         if self.estimator is not None:
             own = {id(p) for p in self.estimator.parameters()}
             rl_params = [p for p in chain(self.actor.parameters(), self.critic.parameters()) if id(p) not in own]
@@ -77,22 +121,71 @@ class EstimatorPPO(PPO):
         super().compute_returns(obs)
 
     def update(self) -> dict[str, float]:
-        """PPO's update, then the estimator's; losses merged (``estimator``, ``estimator_<part>``)."""
-        loss_dict = super().update()
-        if self.estimator is not None:
-            loss_dict.update(self.update_estimator())
-        self._next_obs = None
+        """PPO's update with the estimator's steps on its mini-batches, torch on `update_threads` threads;
+        losses merged (``estimator``, ``estimator_<part>``: means over the mini-batches)."""
+        with torch_threads(update_threads()):
+            if self.estimator is None:
+                return super().update()
+            return self._update_with_estimator()
+
+    def _update_with_estimator(self) -> dict[str, float]:
+        actor: EstimatorActor = self._raw_actor  # type: ignore[assignment]
+        observations = self.storage.observations
+        next_o, valid = self.estimator_targets()
+        observations[NEXT_OBS_GROUP], observations[NEXT_VALID_GROUP] = next_o, valid.unsqueeze(-1)
+        generator = self.storage.mini_batch_generator
+        self._estimator_sums, self._estimator_steps = {}, 0
+        self.storage.mini_batch_generator = lambda *args, **kwargs: self._with_estimator_steps(generator(*args, **kwargs))
+        actor.keep_estimator_output = True
+        self.estimator.train()
+        try:
+            loss_dict = super().update()
+        finally:
+            del self.storage.mini_batch_generator  # the class's generator again
+            actor.keep_estimator_output = False
+            actor.estimator_output = None
+            for key in (NEXT_OBS_GROUP, NEXT_VALID_GROUP):
+                if key in observations.keys():
+                    del observations[key]
+            self._next_obs = None
+        steps = max(self._estimator_steps, 1)
+        loss_dict.update({k: v / steps for k, v in self._estimator_sums.items()})
         return loss_dict
 
-    def estimator_batch(self) -> tuple[torch.Tensor, dict[str, torch.Tensor], torch.Tensor, torch.Tensor]:
-        """The whole rollout as estimator data, flattened to T·N rows.
+    def _with_estimator_steps(self, batches):
+        """PPO's mini-batches; after PPO's step on each, the estimator's step on the same rows."""
+        for batch in batches:
+            yield batch
+            self._estimator_step(batch)
 
-        Returns normalised histories (T·N, H·D), targets {head: (T·N, k)},
-        normalised next observations (T·N, D) and their validity (T·N,) bool.
-        """
+    def _estimator_step(self, batch) -> None:
+        """One Adam step of the estimator on the output the actor kept from this mini-batch's forward pass."""
+        actor: EstimatorActor = self._raw_actor  # type: ignore[assignment]
+        out = actor.estimator_output
+        if out is None:
+            raise RuntimeError("EstimatorPPO: the actor kept no estimator output for this mini-batch")
+        obs = batch.observations
+        cfg = actor.estimator_cfg
+        heads = [h for h, on in (("mass", cfg.mass), ("contact", cfg.contact), ("velocity", cfg.velocity)) if on]
+        targets = {h: obs[TARGET_GROUPS[h]].float() for h in heads}
+        total, parts = self.estimator.loss(out, targets, obs[NEXT_OBS_GROUP], obs[NEXT_VALID_GROUP].squeeze(-1) > 0.5)
+        self.estimator_optimizer.zero_grad()
+        total.backward()
+        all_reduce_gradients(self.estimator.parameters())  # a multi-process run: the mean over ranks
+        nn.utils.clip_grad_norm_(self.estimator.parameters(), self.estimator_max_grad_norm)
+        self.estimator_optimizer.step()
+        self.estimator_optimizer.zero_grad()  # PPO's gradient clipping over the actor must not see these
+        actor.estimator_output = None
+        logged = {"estimator": total.detach(), **{f"estimator_{k}": v for k, v in parts.items()}}
+        for key, value in logged.items():
+            self._estimator_sums[key] = self._estimator_sums.get(key, 0.0) + float(value)
+        self._estimator_steps += 1
+
+    def estimator_targets(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """Normalised o_{t+1} (T, N, D) for every stored transition and its validity (T, N) as 0/1 floats."""
         actor: EstimatorActor = self._raw_actor  # type: ignore[assignment]
         obs, dones = self.storage.observations, self.storage.dones.squeeze(-1).bool()  # (T, N, ...), (T, N)
-        o_group, h_group = actor.obs_groups[0], actor.obs_groups[1]
+        o_group = actor.obs_groups[0]
         with torch.no_grad():
             o = obs[o_group]
             valid = ~dones
@@ -102,38 +195,8 @@ class EstimatorPPO(PPO):
                 last = o[-1:].clone()
                 valid = valid.clone()
                 valid[-1] = False
-            next_o = actor.normalize_obs(torch.cat([o[1:], last], dim=0)).flatten(0, 1)
-            history = actor.normalize_history(obs[h_group].flatten(0, 1))
-            cfg = actor.estimator_cfg
-            heads = [h for h, on in (("mass", cfg.mass), ("contact", cfg.contact), ("velocity", cfg.velocity)) if on]
-            targets = {h: obs[TARGET_GROUPS[h]].flatten(0, 1).float() for h in heads}
-        return history, targets, next_o, valid.flatten()
-
-    def update_estimator(self) -> dict[str, float]:
-        """Run the estimator's epochs over the rollout; mean losses as ``estimator`` and ``estimator_<part>``."""
-        history, targets, next_o, valid = self.estimator_batch()
-        rows = history.shape[0]
-        size = rows // self.estimator_mini_batches
-        sums: dict[str, float] = {}
-        count = 0
-        self.estimator.train()
-        for _ in range(self.estimator_epochs):
-            order = torch.randperm(rows, device=history.device)
-            for i in range(self.estimator_mini_batches):
-                idx = order[i * size:(i + 1) * size]
-                out = self.estimator(history[idx], sample=True)
-                batch_targets = {k: v[idx] for k, v in targets.items()}
-                total, parts = self.estimator.loss(out, batch_targets, next_o[idx], valid[idx])
-                self.estimator_optimizer.zero_grad()
-                total.backward()
-                all_reduce_gradients(self.estimator.parameters())  # a multi-process run: the mean over ranks
-                nn.utils.clip_grad_norm_(self.estimator.parameters(), self.estimator_max_grad_norm)
-                self.estimator_optimizer.step()
-                logged = {"estimator": total.detach(), **{f"estimator_{k}": v for k, v in parts.items()}}
-                for key, value in logged.items():
-                    sums[key] = sums.get(key, 0.0) + float(value)
-                count += 1
-        return {k: v / count for k, v in sums.items()}
+            next_o = actor.normalize_obs(torch.cat([o[1:], last], dim=0))
+        return next_o, valid.float()
 
     def save(self) -> dict:
         """PPO's dict plus ``estimator_optimizer_state_dict`` (the estimator's weights are in the actor's)."""
@@ -217,7 +280,11 @@ class RMAAdaptation:
         """No returns in supervised adaptation."""
 
     def update(self) -> dict[str, float]:
-        """Regress φ on the rollout; returns ``{"adaptation": mean MSE}``."""
+        """Regress φ on the rollout (torch on `update_threads` threads); returns ``{"adaptation": mean MSE}``."""
+        with torch_threads(update_threads()):
+            return self._regress()
+
+    def _regress(self) -> dict[str, float]:
         data = self.buffer[: self.step].flatten(0, 1)
         self.step = 0
         with torch.no_grad():

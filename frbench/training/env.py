@@ -198,7 +198,7 @@ class RecoveryTrainingEnv(VecEnv):
         s = self.task.state
         scan = self.raster.scan(self.tile_row, s.base_pos, yaw_of(s.base_quat))
         return observation_groups(o_t, self.history, self.long_history, s, self.task.contacts, self.task.params,
-                                  self.robots.env_masses, self.robots.com_xy(s), scan, self.backend.diverged)
+                                  self.robots.env_masses, self.robots.com_xy(s, self.backend.whole_body_com()), scan, self.backend.diverged)
 
     def get_observations(self) -> TensorDict:
         """The current observation groups."""

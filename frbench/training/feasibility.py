@@ -23,7 +23,23 @@ STAND_SECONDS = 1.0
 
 
 def can_stand(spec: RobotSpec, kp: float, kd: float, backend: str = "mujoco") -> bool:
-    """True when ``spec`` holds its default pose on flat ground with gains ``kp`` [N·m/rad], ``kd`` [N·m·s/rad]."""
+    """True when ``spec`` holds its default pose on flat ground with gains ``kp`` [N·m/rad], ``kd`` [N·m·s/rad].
+
+    Deterministic, so the answer is cached (`frbench.content_cache`) by the spec, its simulation URDF, the
+    gains, the backend and the source of the code that simulates it."""
+    import json
+
+    from frbench.content_cache import cached_bytes, content_key, source_key
+    from frbench.robots.sim_urdf import sim_robot_file
+
+    key = content_key(spec, sim_robot_file(spec).path.read_bytes(), float(kp), float(kd), backend,
+                      source_key(__name__, "frbench.backends.base", f"frbench.backends.{backend}_backend",
+                                 "frbench.backends.mujoco_model"))
+    return cached_bytes("feasibility", key, ".json",
+                        lambda: json.dumps(_stands(spec, kp, kd, backend)).encode(), lambda data: bool(json.loads(data)))
+
+
+def _stands(spec: RobotSpec, kp: float, kd: float, backend: str) -> bool:
     from frbench.backends import make_backend
     from frbench.backends.base import CONTROL_DT, PhysicsParams, RobotState
 

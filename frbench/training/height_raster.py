@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from frbench.content_cache import cached_bytes, content_key, object_key, source_key
 from frbench.terrains import SCAN_POINTS, height_at
 
 RESOLUTION = 0.04  # m
@@ -24,13 +25,19 @@ class HeightRaster:
         n = int(round(2 * HALF_SIZE / RESOLUTION)) + 1
         axis = np.linspace(-HALF_SIZE, HALF_SIZE, n)
         gx, gy = np.meshgrid(axis, axis, indexing="ij")
-        self.centres = np.zeros((len(tile_keys), 2))
-        self.heights = np.zeros((len(tile_keys), n, n), dtype=np.float32)
-        for i, key in enumerate(tile_keys):
-            x, y, _ = grid.spawn(*key)
-            self.centres[i] = (x, y)
-            points = np.stack([gx + x, gy + y], axis=-1).reshape(-1, 2)
-            self.heights[i] = height_at(grid.world, points).reshape(n, n)
+        self.centres = np.array([grid.spawn(*key)[:2] for key in tile_keys], dtype=float).reshape(-1, 2)
+
+        def rasters() -> bytes:  # slow (`height_at` on every cell), so cached by its inputs
+            heights = np.zeros((len(tile_keys), n, n), dtype=np.float32)
+            for i, (x, y) in enumerate(self.centres):
+                points = np.stack([gx + x, gy + y], axis=-1).reshape(-1, 2)
+                heights[i] = height_at(grid.world, points).reshape(n, n)
+            return heights.tobytes()
+
+        key = content_key(object_key(grid.world), self.centres.tobytes(), RESOLUTION, HALF_SIZE,
+                          source_key(__name__, "frbench.terrains.geometry"))
+        self.heights = cached_bytes("height-rasters", key, ".f32", rasters,
+                                    lambda data: np.frombuffer(data, dtype=np.float32).reshape(len(tile_keys), n, n))
         self.floor = float(grid.world.floor_z)
         self.n = n
 

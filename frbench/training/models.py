@@ -169,6 +169,10 @@ class EstimatorActor(MLPModel):
         super().__init__(obs, obs_groups, obs_set, output_dim, hidden_dims, activation, obs_normalization,
                          distribution_cfg)
         self.estimator = Estimator(self.estimator_cfg) if self.estimator_cfg.enabled else None
+        #: Set by `EstimatorPPO` during its update: forward passes with gradients then keep the estimator's
+        #: full output (with its graph) in ``estimator_output`` for the estimator's step on the same rows.
+        self.keep_estimator_output = False
+        self.estimator_output = None
 
     def _get_obs_dim(self, obs: TensorDict, obs_groups: dict[str, list[str]], obs_set: str) -> tuple[list[str], int]:
         groups = list(obs_groups[obs_set])
@@ -208,8 +212,13 @@ class EstimatorActor(MLPModel):
         o = self.obs_normalizer(obs[self.obs_groups[0]])
         if self.estimator is None:
             return o
-        with torch.no_grad():
-            features = self.estimator.policy_features(self.normalize_history(obs[self.obs_groups[1]]))
+        history = self.normalize_history(obs[self.obs_groups[1]])
+        if self.keep_estimator_output and torch.is_grad_enabled():  # PPO's update: the estimator trains on this pass
+            self.estimator_output = self.estimator(history, sample=True)
+            features = self.estimator_output.features
+        else:
+            with torch.no_grad():
+                features = self.estimator.policy_features(history)
         return torch.cat([o, features.detach()], dim=-1)
 
     def update_normalization(self, obs: TensorDict) -> None:

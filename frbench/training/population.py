@@ -125,17 +125,12 @@ class TrainingRobots:
         params.motor_friction = self.rng.uniform(*CONTROL_RANGES["motor_friction"], size=(n, self.spec.n_joints))
         return params
 
-    def com_xy(self, state: RobotState) -> np.ndarray:
-        """Whole-body CoM minus base position, in the base yaw frame, (N, 2) [m] (Pinocchio)."""
-        import pinocchio
-
+    @staticmethod
+    def com_xy(state: RobotState, com_world: np.ndarray) -> np.ndarray:
+        """Whole-body CoM ``com_world`` (N, 3) [m] (the backend's vectorised `whole_body_com`, payload included)
+        minus the base position, in the base yaw frame, (N, 2) [m]."""
         s = state
-        out = np.zeros((len(s.base_pos), 2))
-        for i in range(len(s.base_pos)):
-            k = self.assignment[i]
-            config = ground_truth.configuration(self._pin[k], s.base_pos[i], s.base_quat[i], s.q[i])
-            out[i] = np.asarray(pinocchio.centerOfMass(self._pin[k].model, self._pin_data[k], config))[:2]
-        delta = out - s.base_pos[:, :2]
+        delta = com_world[:, :2] - s.base_pos[:, :2]
         yaw = yaw_of(s.base_quat)
         c, si = np.cos(yaw), np.sin(yaw)
         return np.stack([c * delta[:, 0] + si * delta[:, 1], -si * delta[:, 0] + c * delta[:, 1]], axis=1)
