@@ -45,7 +45,6 @@ from frbench.policies.keyframe_humanoid import (
 )
 from tools.keyframe_states import STATE_FIELDS, parse_seeds
 from frbench.tasks.initial_states import FALL_KINDS, FallenStarts, draw_starts
-
 from frbench.tasks.recovery import EPISODE_STEPS, RecoveryTask
 
 #: The key frames were searched on protocol 1.0's starts; the seeds in keyframe_humanoid_params.json name those.
