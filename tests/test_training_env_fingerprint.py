@@ -1,5 +1,5 @@
-"""The training env reproduces, bit for bit, a rollout recorded before it became an adapter over the episode
-engine (tests/data/training_env_fingerprint.npz, written by tools/training_env_fingerprint.py)."""
+"""The training env reproduces, bit for bit, its recorded rollout (tests/data/training_env_fingerprint.npz,
+written by tools/training_env_fingerprint.py; see there for when it was recorded)."""
 
 from __future__ import annotations
 
