@@ -79,7 +79,7 @@ def test_the_json_form_round_trips():
 def _shipped_configs():
     import torch
 
-    yield "checkpoints/frnet-session4/config.json", json.loads((ROOT / "checkpoints/frnet-session4/config.json").read_text())
+    yield "checkpoints/frnet-15m/config.json", json.loads((ROOT / "checkpoints/frnet-15m/config.json").read_text())
     yield "frbench/policies/checkpoints/frnet.config.json", json.loads(
         (ROOT / "frbench/policies/checkpoints/frnet.config.json").read_text())
     for path in sorted((ROOT / "frbench/policies/checkpoints/budget3m").glob("*.pt")):
