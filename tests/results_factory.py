@@ -44,7 +44,7 @@ def make_results(
     terrains: Sequence[str] = STANDARD_TERRAINS,
     levels: Sequence[int] = STANDARD_LEVELS,
     seeds: Sequence[int] = STANDARD_SEEDS,
-    episodes: int = 2,
+    episodes: int = 3,
     policy: str = "scripted",
     skill: float = 0.8,
     salt: int = 0,

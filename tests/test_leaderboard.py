@@ -22,6 +22,8 @@ from frbench.leaderboard.paths import ENV_VAR, default_root
 from frbench.leaderboard.records import build_record, check_record, record_id, submission_fields
 from frbench.leaderboard.render import md_escape, page_data, render_html, render_markdown, script_json
 from frbench.leaderboard.results import check_results
+from frbench.leaderboard.scores import main_track_shortfall
+from frbench.tasks.protocol import STANDARD_EPISODES
 from frbench.schemas import SCHEMA_NAMES, load_schema, schema_text, validate
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -38,7 +40,7 @@ SUBMITTED = "2026-11-22T02:00:00Z"
 @pytest.fixture(scope="module")
 def full() -> dict:
     """Standard-grid results (840 cells, 2 episodes each)."""
-    return make_results(episodes=2)
+    return make_results(episodes=3)
 
 
 @pytest.fixture
@@ -141,13 +143,19 @@ def test_standard_grid_is_the_main_track_and_extra_cells_do_not_count(full):
     rates = [c["success_rate"] for c in full["cells"]]
     assert record["scores"]["overall"] == pytest.approx(sum(rates) / len(rates), abs=1e-12)
     # a superset of the standard grid is still main, scored on the standard cells only
-    bigger = make_results(robots=(*full["config"]["robots"], "anymal_like"), episodes=2)
+    bigger = make_results(robots=(*full["config"]["robots"], "anymal_like"), episodes=3)
     big = build_record(bigger, _fields(bigger))
     assert big["track"] == "main"
     assert big["scores"]["cells"] == 840 and "anymal_like" not in big["scores"]["per_robot"]
     # missing one seed: partial
     fewer = make_results(seeds=(0, 1, 2), episodes=1)
     assert build_record(fewer, _fields(fewer))["track"] == "partial"
+    assert main_track_shortfall(fewer["cells"]) == "210 of the standard grid's 840 cells are missing"
+    # every standard cell present but with fewer than STANDARD_EPISODES episodes: partial
+    thin = make_results(episodes=STANDARD_EPISODES - 1)
+    assert build_record(thin, _fields(thin))["track"] == "partial"
+    assert main_track_shortfall(thin["cells"]) == f"840 standard cells have fewer than {STANDARD_EPISODES} episodes"
+    assert main_track_shortfall(full["cells"]) is None
 
 
 def test_one_backend_has_no_sim_to_sim_gap():
@@ -357,7 +365,8 @@ def test_submit_writes_a_record_and_regenerates_the_board(root, tmp_path, capsys
                               "--description", "Scripted controller & friends", "--link", "https://example.org/paper?id=1")
     assert (status, err) == (0, "")
     rid = record_id(results)
-    assert out.startswith(f"added record {rid[:12]} (go2-scripted, partial track): overall success 0.563, sim-to-sim gap 0.125, 16 cells\n")
+    assert out.startswith(f"added record {rid[:12]} (go2-scripted, partial track): overall success 0.563, sim-to-sim gap 0.125, 16 cells\n"
+                          "partial, not ranked on the main board: 824 of the standard grid's 840 cells are missing\n")
     assert [p.name for p in records_in(root)] == [f"{rid}.json"]
     record = json.loads((root / "records" / f"{rid}.json").read_text())
     assert record["results"] == results  # kept verbatim, per-episode records included
@@ -469,7 +478,7 @@ def populated_template(tmp_path_factory, full) -> Path:
     """A leaderboard with two main records and one partial one, built once."""
     folder = tmp_path_factory.mktemp("populated")
     root = empty_board_copy(REPO_BOARD, folder / "leaderboard")
-    better = make_results(episodes=2, skill=0.95, salt=1, policy="ppo", checkpoint="runs/ppo/model.pt")
+    better = make_results(episodes=3, skill=0.95, salt=1, policy="ppo", checkpoint="runs/ppo/model.pt")
     for name, results in (("baseline", full), ("ppo-best", better), ("tiny", small_results())):
         lb.submit(write_results(folder / f"{name}.json", results), root, name=name)
     return root
@@ -664,10 +673,10 @@ def test_validator_messages():
 
 def test_records_of_another_protocol_version_are_archived_not_ranked(tmp_path, capsys):
     root = empty_board_copy(REPO_BOARD, tmp_path / "leaderboard")
-    old = make_results(episodes=2, skill=0.95, salt=3)
+    old = make_results(episodes=3, skill=0.95, salt=3)
     old["protocol_version"] = "1.0"
     lb.submit(write_results(tmp_path / "old.json", old), root, name="old-but-better")
-    lb.submit(write_results(tmp_path / "new.json", make_results(episodes=2, skill=0.5, salt=4)), root, name="current")
+    lb.submit(write_results(tmp_path / "new.json", make_results(episodes=3, skill=0.5, salt=4)), root, name="current")
     status, out, _ = cli(capsys, "leaderboard", "--root", root, "--format", "json")
     data = json.loads(out)
     assert status == 0 and data["protocol_version"] == "1.1"
@@ -692,7 +701,7 @@ def test_ranking_refuses_to_mix_protocol_versions():
 def test_neighbours_with_overlapping_intervals_are_marked(tmp_path, capsys):
     root = empty_board_copy(REPO_BOARD, tmp_path / "leaderboard")
     for name, skill, salt in (("a", 0.60, 5), ("b", 0.59, 6), ("c", 0.05, 7)):
-        lb.submit(write_results(tmp_path / f"{name}.json", make_results(episodes=2, skill=skill, salt=salt)), root, name=name)
+        lb.submit(write_results(tmp_path / f"{name}.json", make_results(episodes=3, skill=skill, salt=salt)), root, name=name)
     data = json.loads(cli(capsys, "leaderboard", "--root", root, "--format", "json")[1])
     marks = {r["name"]: r["tied_above"] for r in data["main"]}
     order = [r["name"] for r in data["main"]]

@@ -62,9 +62,9 @@ def board_dir(tmp_path_factory) -> Path:
     root = folder / "leaderboard"
     empty_board_copy(REPO_BOARD, root)
     entries = [
-        ("scripted-baseline", make_results(episodes=2), "frbench team", "The scripted stand-up controller shipped with frbench.", "https://example.org/frbench"),
-        ("ppo-rough-v2", make_results(episodes=2, skill=0.95, salt=1, policy="ppo", checkpoint="runs/ppo/model.pt"), "A. Researcher", "PPO with a rough-terrain curriculum & domain randomization", None),
-        ("sac-flat", make_results(episodes=2, skill=0.6, salt=2, policy="sac", checkpoint="runs/sac/model.pt"), "B. Student", "", None),
+        ("scripted-baseline", make_results(episodes=3), "frbench team", "The scripted stand-up controller shipped with frbench.", "https://example.org/frbench"),
+        ("ppo-rough-v2", make_results(episodes=3, skill=0.95, salt=1, policy="ppo", checkpoint="runs/ppo/model.pt"), "A. Researcher", "PPO with a rough-terrain curriculum & domain randomization", None),
+        ("sac-flat", make_results(episodes=3, skill=0.6, salt=2, policy="sac", checkpoint="runs/sac/model.pt"), "B. Student", "", None),
         ("go2-probe", small_results(), "tester", "Partial run on two families", None),
         ("mujoco-only", small_results(backends=("mujoco",), salt=5), "tester", "", None),
     ]

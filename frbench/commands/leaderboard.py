@@ -80,6 +80,10 @@ def run_submit(args: argparse.Namespace) -> int:
         f"overall success {fmt_score(scores['overall'])}, sim-to-sim gap {fmt_score(scores['sim_to_sim_gap'])}, "
         f"{scores['cells']} cells"
     )
+    if record["track"] == "partial":
+        from frbench.leaderboard.scores import main_track_shortfall
+
+        print(f"partial, not ranked on the main board: {main_track_shortfall(record['results']['cells'])}")
     if outcome.written:
         print(f"wrote {outcome.path}; commit it with {root / 'README.md'} and {root / 'index.html'}")
     return 0

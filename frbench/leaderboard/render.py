@@ -31,6 +31,7 @@ from frbench.tasks.protocol import (
     KNOWN_PROTOCOL_VERSIONS,
     PROTOCOL_VERSION,
     STANDARD_BACKENDS,
+    STANDARD_EPISODES,
     STANDARD_LEVELS,
     STANDARD_ROBOTS,
     STANDARD_SEEDS,
@@ -58,6 +59,7 @@ def _standard_text() -> str:
         f"{len(STANDARD_ROBOTS)} robots ({', '.join(STANDARD_ROBOTS)}) x {len(STANDARD_BACKENDS)} backends "
         f"({', '.join(STANDARD_BACKENDS)}) x {len(STANDARD_TERRAINS)} terrain families ({', '.join(STANDARD_TERRAINS)}) "
         f"x levels {'/'.join(map(str, STANDARD_LEVELS))} x seeds {'/'.join(map(str, STANDARD_SEEDS))}"
+        f", at least {STANDARD_EPISODES} episodes per cell"
     )
 
 

@@ -9,8 +9,8 @@ terrain x level x seed), so each cell weighs the same:
   ``|mean over seeds (mujoco) - mean over seeds (pybullet)|``, averaged; null
   when no (robot, terrain, level) has both backends.
 
-A record whose cells cover the standard grid (``frbench.tasks.protocol``) is on
-the ``main`` track and is scored on the standard grid's cells only, so main
+A record whose cells cover the standard grid (``frbench.tasks.protocol``), each
+standard cell with at least ``STANDARD_EPISODES`` episodes, is on the ``main`` track and is scored on the standard grid's cells only, so main
 records are comparable; any other record is ``partial`` and scored on all its
 cells. Ranking: overall success (higher first), then sim-to-sim gap (lower
 first, none last), then submission time, then id — only among records of one
@@ -33,6 +33,7 @@ import numpy as np
 from frbench.evaluation.intervals import bootstrap_rates, percentile_interval, sim_to_sim_gaps, sorted_cells
 from frbench.tasks.protocol import (
     STANDARD_BACKENDS,
+    STANDARD_EPISODES,
     STANDARD_LEVELS,
     STANDARD_ROBOTS,
     STANDARD_SEEDS,
@@ -51,10 +52,26 @@ def cell_key(cell: Mapping) -> tuple:
     return (cell["robot"], cell["backend"], cell["terrain"], cell["level"], cell["seed"])
 
 
+def main_track_shortfall(cells: Sequence[Mapping]) -> str | None:
+    """Why the cells are not a main-track record (``None`` when they are).
+
+    Main means: every cell of the standard grid present, each with at least
+    ``STANDARD_EPISODES`` episodes (the count that bounds the overall score's
+    95 % interval at +-2 points; ``frbench.tasks.protocol``).
+    """
+    episodes = {cell_key(c): c["episodes"] for c in cells}
+    missing = len(STANDARD_GRID - episodes.keys())
+    if missing:
+        return f"{missing} of the standard grid's {len(STANDARD_GRID)} cells are missing"
+    short = sum(1 for key in STANDARD_GRID if episodes[key] < STANDARD_EPISODES)
+    if short:
+        return f"{short} standard cells have fewer than {STANDARD_EPISODES} episodes"
+    return None
+
+
 def track_of(cells: Sequence[Mapping]) -> str:
-    """``main`` when the cells cover the whole standard grid, else ``partial``."""
-    keys = {cell_key(c) for c in cells}
-    return "main" if STANDARD_GRID <= keys else "partial"
+    """``main`` when the cells cover the whole standard grid with enough episodes per cell, else ``partial``."""
+    return "main" if main_track_shortfall(cells) is None else "partial"
 
 
 def scored_cells(cells: Sequence[Mapping], track: str) -> list[Mapping]:
