@@ -108,13 +108,33 @@ def test_cli_add_runs_the_check_and_exits_1_when_it_fails(tmp_path, quadruped_ur
     assert "robot 'floppy' is already registered" in capsys.readouterr().err
 
 
-def test_sim_urdf_cache_stays_bounded(tmp_path):
+def test_sim_urdf_cache_stays_bounded_and_spares_files_in_use(tmp_path):
+    import os
+    import time
+
     from frbench.robots.sim_urdf import prune_cache
 
+    now = time.time()
     for i in range(12):
-        (tmp_path / f"f{i}.urdf").write_text("x")
-    prune_cache(tmp_path, keep=5)
-    assert len(list(tmp_path.iterdir())) == 5
+        path = tmp_path / f"f{i}.urdf"
+        path.write_text("x")
+        os.utime(path, (now - 7200 - i, now - 7200 - i))  # used two hours ago, f0 most recently
+    (tmp_path / "in-use.urdf").write_text("x")  # just used by some process
+    prune_cache(tmp_path, keep=5, min_age_s=3600.0)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["f0.urdf", "f1.urdf", "f2.urdf", "f3.urdf", "in-use.urdf"]
+    prune_cache(tmp_path, keep=2, min_age_s=0.0)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["f0.urdf", "in-use.urdf"]
+
+
+def test_sim_urdf_file_pruned_by_another_process_is_made_again():
+    from frbench.robots.sim_urdf import sim_robot_file
+
+    spec = get_robot("go1")
+    first = sim_robot_file(spec)
+    first.path.unlink()  # what a concurrent prune or `frbench cache clear` does
+    again = sim_robot_file(spec)
+    assert again.path == first.path and again.path.is_file()
+    assert again.sha256 == first.sha256
 
 
 def test_evaluation_records_the_check_of_a_robot_given_by_path(tmp_path, quadruped_urdf_text):

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
+import time
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -56,6 +57,8 @@ DEFAULT_VELOCITY_LIMIT = 100.0
 MASSLESS_FOOT_MASS = 1e-6
 #: The cache keeps at most this many files per folder; the least recently used go first.
 CACHE_MAX_FILES = 200
+#: [s] a cached file used this recently is never pruned: another process may be about to load it.
+CACHE_MIN_AGE_S = 3600.0
 _MUJOCO_GEOM = {"box": "mjGEOM_BOX", "sphere": "mjGEOM_SPHERE", "cylinder": "mjGEOM_CYLINDER"}
 
 
@@ -393,22 +396,40 @@ def safe_file_stem(name: str) -> str:
     return stem or "robot"
 
 
-def prune_cache(folder: Path, keep: int = CACHE_MAX_FILES) -> None:
-    """Delete the least recently used files of ``folder`` beyond ``keep`` (the cache stays bounded)."""
+def prune_cache(folder: Path, keep: int = CACHE_MAX_FILES, min_age_s: float = CACHE_MIN_AGE_S) -> None:
+    """Delete the least recently used files of ``folder`` beyond ``keep``, sparing those used within ``min_age_s``.
+
+    The cache stays bounded at ``keep`` files plus what running processes used in the last ``min_age_s`` seconds.
+    """
     try:
-        files = sorted((p for p in folder.iterdir() if p.is_file()), key=lambda p: p.stat().st_mtime, reverse=True)
+        stamped = sorted(((p.stat().st_mtime, p) for p in folder.iterdir() if p.is_file()), reverse=True)
     except OSError:
         return
-    for old in files[keep:]:
+    newest_removable = time.time() - min_age_s
+    for mtime, old in stamped[keep:]:
+        if mtime > newest_removable:
+            continue
         try:
             old.unlink()
         except OSError:
             pass
 
 
-@lru_cache(maxsize=256)
 def sim_robot_file(spec: RobotSpec) -> SimRobotFile:
-    """The simulation URDF of ``spec``, generated once and cached on disk."""
+    """The simulation URDF of ``spec``, generated once per process and cached on disk.
+
+    If the cached file has vanished since this process first asked (another process pruned the cache, or
+    ``frbench cache clear`` ran), it is generated again: its content, and so its checksum, are the same.
+    """
+    found = _sim_robot_file(spec)
+    if found.path.is_file():
+        return found
+    _sim_robot_file.cache_clear()
+    return _sim_robot_file(spec)
+
+
+@lru_cache(maxsize=256)
+def _sim_robot_file(spec: RobotSpec) -> SimRobotFile:
     source_sha = sha256_file(spec.urdf_path) if Path(spec.urdf_path).is_file() else ""
     if not source_sha:
         raise RobotFileError(f"{spec.urdf_path}: no such URDF file (robot {spec.name!r})")
