@@ -38,6 +38,7 @@ from typing import Protocol
 
 import numpy as np
 
+from frbench.backends.contact_layout import contact_layout, vector_norm
 from frbench.robots.spec import RobotSpec
 from frbench.tasks.protocol import CONTROL_DT  # noqa: F401  (the protocol's control period [s], used by backends)
 
@@ -212,35 +213,19 @@ def divergence_mask(state: RobotState) -> np.ndarray:
     return ~np.all(np.isfinite(stacked) & (np.abs(stacked) < DIVERGENCE_LIMIT), axis=1)
 
 
-@lru_cache(maxsize=64)
-def group_index(link_names: tuple[str, ...], groups) -> list[np.ndarray]:
-    """For each group, the indices of its links in ``link_names`` (cached: called every step)."""
-    where = {name: i for i, name in enumerate(link_names)}
-    return [np.array([where[l] for l in group.links]) for group in groups]
-
-
 def summarize_contacts(spec: RobotSpec, link_names: tuple[str, ...], link_force: np.ndarray) -> Contacts:
     """`Contacts` from per-link net forces (N, n_links, 3) — the same rule for every backend."""
-    norm = np.linalg.norm(link_force, axis=-1)
-    touching = norm > CONTACT_FORCE_THRESHOLD
-    group_contact = np.stack([touching[:, idx].any(axis=1) for idx in group_index(link_names, spec.contact_groups)], axis=1)
-    feet, non_foot = _feet_and_rest(link_names, spec.foot_links)
-    foot_force = norm[:, feet]
-    knee = np.stack([link_force[:, idx].sum(axis=1) for idx in group_index(link_names, spec.knee_groups)], axis=1)
+    layout = contact_layout(link_names, spec.contact_groups, spec.knee_groups, spec.foot_links)
+    norm = vector_norm(link_force)
+    foot_force = norm[:, layout.feet]
     return Contacts(
         link_force=link_force,
-        group_contact=group_contact,
+        group_contact=layout.group_contact(norm > CONTACT_FORCE_THRESHOLD),
         foot_force=foot_force,
         foot_contact=foot_force > CONTACT_FORCE_THRESHOLD,
-        knee_force_xy=np.linalg.norm(knee[..., :2], axis=-1),
-        body_force_max=norm[:, non_foot].max(axis=1) if non_foot.size else np.zeros(len(link_force)),
+        knee_force_xy=vector_norm(layout.knee_sum(link_force)[..., :2]),
+        body_force_max=norm[:, layout.non_foot].max(axis=1) if layout.has_non_foot else np.zeros(len(link_force)),
     )
-
-
-@lru_cache(maxsize=64)
-def _feet_and_rest(link_names: tuple[str, ...], foot_links: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
-    feet = np.array([link_names.index(f) for f in foot_links])
-    return feet, np.setdiff1d(np.arange(len(link_names)), feet)
 
 
 def check_base_force(force: np.ndarray, num_envs: int) -> np.ndarray:

@@ -27,6 +27,7 @@ from mujoco import batch as mjbatch
 
 from frbench.backends.base import (
     CONTROL_DT,
+    DIVERGENCE_LIMIT,
     MOTOR_FRICTION_VELOCITY,
     Contacts,
     PhysicsParams,
@@ -36,12 +37,14 @@ from frbench.backends.base import (
     divergence_mask,
     summarize_contacts,
 )
+from frbench.backends.contact_layout import as_slice
 from frbench.backends.mujoco_model import build_model, joint_addresses
 from frbench.robots.sim_urdf import sim_robot_file
 from frbench.robots.spec import RobotSpec
 
 #: MuJoCo's warnings that mean a simulation blew up (it then resets that MjData itself).
-_INSTABILITY = [int(getattr(mujoco.mjtWarning, w)) for w in ("mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADQACC")]
+_INSTABILITY = as_slice(np.array([int(getattr(mujoco.mjtWarning, w))
+                                  for w in ("mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADQACC")]))
 
 
 def default_threads() -> int:
@@ -74,10 +77,15 @@ class MujocoBackend:
         self.physics_dt = float(self.model.opt.timestep)
         self.substeps = int(round(CONTROL_DT / self.physics_dt))
         self.batch = mjbatch.Batch(self.model, self.num_envs, nthread or default_threads(), persistent=True)
-        self._qadr, self._dadr = joint_addresses(self.model, spec)
+        qadr, dadr = joint_addresses(self.model, spec)
+        self._qadr, self._dadr = as_slice(qadr), as_slice(dadr)
+        #: every coordinate is the free joint's or a canonical joint's: `divergence_mask` reads qpos and qvel whole
+        self._whole_state = (isinstance(self._qadr, slice) and isinstance(self._dadr, slice)
+                             and self._qadr == slice(7, self.model.nq) and self._dadr == slice(6, self.model.nv))
         self.link_names = sim_robot_file(spec).links
-        self._link_body = np.array([self.model.body(name).id for name in self.link_names])
-        self._root_body = self._link_body[0]
+        link_body = np.array([self.model.body(name).id for name in self.link_names])
+        self._link_body = as_slice(link_body)
+        self._root_body = int(link_body[0])
         self._base_mass = float(self.model.body_mass[self._root_body])
         self.has_variants = variants is not None
         if variants is not None:
@@ -184,7 +192,14 @@ class MujocoBackend:
             self.diverged[np.asarray(exc.ids)] = True
         self.diverged |= self.batch.warning[:, _INSTABILITY, 0].sum(axis=1) > warnings_before
         self._tau = np.where(self.diverged[:, None], 0.0, self._qfrc_actuator[:, self._dadr])
-        self.diverged |= divergence_mask(self._raw_state())
+        self.diverged |= self._divergence()
+
+    def _divergence(self) -> np.ndarray:
+        """(N,) `divergence_mask` of the current state; read from qpos and qvel whole when they hold nothing but
+        the root and the canonical joints (|x| < limit is False for NaN and ±inf, so it covers finiteness)."""
+        if not self._whole_state:
+            return divergence_mask(self._raw_state())
+        return ~((np.abs(self._qpos) < DIVERGENCE_LIMIT).all(axis=1) & (np.abs(self._qvel) < DIVERGENCE_LIMIT).all(axis=1))
 
     def _raw_state(self) -> RobotState:
         qpos, qvel = self._qpos, self._qvel
@@ -215,8 +230,8 @@ class MujocoBackend:
 
     def contacts(self) -> Contacts:
         """Net contact force per link from ``cfrc_ext`` (world frame), summarised by group."""
-        link_force = self._cfrc_ext[:, self._link_body, 3:6]
-        return summarize_contacts(self.spec, self.link_names, np.array(link_force))
+        link_force = np.array(self._cfrc_ext[:, self._link_body, 3:6])
+        return summarize_contacts(self.spec, self.link_names, link_force)
 
     def close(self) -> None:
         """Release the batch."""

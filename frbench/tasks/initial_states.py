@@ -22,11 +22,11 @@ from functools import lru_cache
 import numpy as np
 
 from frbench.backends.self_collision import self_intersects
-from frbench.robots.kinematics import link_poses, lowest_point
 from frbench.robots.sim_urdf import sim_robot_file
 from frbench.robots.spec import RobotSpec
 from frbench.robots.urdf_tree import parse_urdf
 from frbench.tasks.protocol import PROTOCOL_VERSION
+from frbench.tasks.start_geometry import StartGeometry
 
 FALL_KINDS = ("supine", "prone", "left_side", "right_side", "random")
 #: Probability of each fall kind. Prone starts are rare: from the belly a robot
@@ -128,20 +128,16 @@ def fall_orientation(kind: str, robot_kind: str, yaw: float, rng: np.random.Gene
 
 
 @lru_cache(maxsize=32)
-def _tree(spec: RobotSpec):
-    return parse_urdf(sim_robot_file(spec).path)
+def _geometry(spec: RobotSpec) -> StartGeometry:
+    return StartGeometry(parse_urdf(sim_robot_file(spec).path), spec.joint_names)
 
 
 def lowest_offset_and_reach(spec: RobotSpec, quat: np.ndarray, q: np.ndarray) -> tuple[float, float]:
-    """(lowest collision point z relative to the base [m], horizontal reach [m]) of a configuration."""
-    tree = _tree(spec)
-    poses = link_poses(tree, dict(zip(spec.joint_names, q)))
+    """(lowest collision point z relative to the base [m], horizontal reach [m]) of a configuration: base
+    orientation ``quat`` (4,) wxyz, joint angles ``q`` (n_joints,) [rad] (`StartGeometry`)."""
     rotation = np.eye(4)
     rotation[:3, :3] = quat_to_matrix(quat)
-    world = {name: rotation @ pose for name, pose in poses.items()}
-    lowest = lowest_point(tree, world, tree.links)
-    reach = max(np.linalg.norm(pose[:2, 3]) for pose in world.values()) + 0.15
-    return lowest, reach
+    return _geometry(spec).lowest_offset_and_reach(rotation, np.asarray(q))
 
 
 def draw_start(spec: RobotSpec, terrain, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:

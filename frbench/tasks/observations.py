@@ -25,28 +25,42 @@ PROPRIOCEPTION_KEYS = ("base_angvel", "projected_gravity", "joint_pos", "joint_v
 NOISE_SCALES = {"base_angvel": 0.2, "projected_gravity": 0.05, "joint_pos": 0.01, "joint_vel": 1.5}
 
 
+#: Column orders of a cross product: (a × b)_i = a[NEXT_i] b[PREV_i] − a[PREV_i] b[NEXT_i].
+_NEXT, _PREV = np.array([1, 2, 0]), np.array([2, 0, 1])
+
+
+def cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise cross products of (N, 3) arrays: the products and differences ``np.cross`` computes, in one
+    pass over the columns (without its axis handling)."""
+    return a[:, _NEXT] * b[:, _PREV] - a[:, _PREV] * b[:, _NEXT]
+
+
 def rotate_to_body(quat: np.ndarray, vectors: np.ndarray) -> np.ndarray:
-    """World vectors (N, 3) expressed in the body frames of quaternions (N, 4) wxyz."""
+    """World vectors (N, 3) (or one (1, 3), broadcast) expressed in the body frames of quaternions (N, 4) wxyz."""
     w, xyz = quat[:, :1], quat[:, 1:]
     # v_body = R^T v = v - 2 w (u × v) + 2 u × (u × v), with u = xyz (rotation by the conjugate)
-    t = 2.0 * np.cross(xyz, vectors)
-    return vectors - w * t + np.cross(xyz, t)
+    t = 2.0 * cross_rows(xyz, vectors)
+    return vectors - w * t + cross_rows(xyz, t)
+
+
+#: The world's unit gravity direction (1, 3), broadcast over N rows.
+_DOWN = np.array([[0.0, 0.0, -1.0]])
 
 
 def projected_gravity(quat: np.ndarray) -> np.ndarray:
     """Unit gravity direction in the body frame, (N, 3)."""
-    down = np.zeros((len(quat), 3))
-    down[:, 2] = -1.0
-    return rotate_to_body(quat, down)
+    return rotate_to_body(quat, _DOWN)
 
 
 def proprioception(
-    state: RobotState, previous_action: np.ndarray, noise_rng: np.random.Generator | None = None
+    state: RobotState, previous_action: np.ndarray, noise_rng: np.random.Generator | None = None,
+    gravity: np.ndarray | None = None,
 ) -> dict[str, np.ndarray]:
-    """The policy's observation dict (see the module docstring)."""
+    """The policy's observation dict (see the module docstring); ``gravity`` (N, 3): `projected_gravity` of
+    ``state.base_quat`` when the caller has it already (it is copied)."""
     obs = {
         "base_angvel": state.base_angvel.copy(),
-        "projected_gravity": projected_gravity(state.base_quat),
+        "projected_gravity": projected_gravity(state.base_quat) if gravity is None else gravity.copy(),
         "joint_pos": state.q.copy(),
         "joint_vel": state.qd.copy(),
         "previous_action": np.array(previous_action, dtype=float),

@@ -28,6 +28,7 @@ from typing import Callable
 import numpy as np
 
 from frbench.backends import make_backend
+from frbench.backends.contact_layout import vector_norm
 from frbench.backends.base import PhysicsParams, RobotState
 from frbench.robots.spec import RobotSpec
 from frbench.tasks.initial_states import SETTLE_GAIN_SCALE, SETTLE_SECONDS, FallenStarts
@@ -35,6 +36,7 @@ from frbench.tasks.observations import projected_gravity, proprioception
 from frbench.tasks.protocol import CONTROL_DT, EPISODE_SECONDS
 from frbench.tasks.start_screening import screen_starts
 from frbench.tasks.success import EpisodeMetrics, StartSurface, StepSignals, SuccessTracker, torso_frame
+from frbench.terrains import height_at
 
 EPISODE_STEPS = int(round(EPISODE_SECONDS / CONTROL_DT))
 SETTLE_STEPS = int(round(SETTLE_SECONDS / CONTROL_DT))
@@ -85,6 +87,8 @@ class RecoveryTask:
             raise ValueError(f"backend has {self.backend.num_envs} simulations, the task {num_envs} episodes")
         self.noise_rng = noise_rng
         self.ground_height = ground_height or self._height_of_terrain
+        self._terrain_ground = ground_height is None
+        self._gravity_state = None  # the state ``gravity`` was computed from
         self.nominal_height = spec.nominal_height if nominal_height is None else nominal_height
         self.track_metrics = track_metrics
         self.surface_rules = surface_rules
@@ -100,8 +104,6 @@ class RecoveryTask:
         self.backend.close()
 
     def _height_of_terrain(self, xy: np.ndarray) -> np.ndarray:
-        from frbench.terrains import height_at
-
         return height_at(self.terrain, xy)
 
     def settle(self, starts: FallenStarts, settle_steps: int = SETTLE_STEPS) -> None:
@@ -153,19 +155,25 @@ class RecoveryTask:
     def _signals(self, contacts) -> StepSignals:
         """What the success test reads in the current state (``gravity`` is refreshed here)."""
         s = self.state
-        self.gravity = projected_gravity(s.base_quat)
+        self.gravity, self._gravity_state = projected_gravity(s.base_quat), s
+        xy = s.base_pos[:, :2]
+        ground = self.ground_height(xy)
+        surface_drop = None
+        if self.start_surface is not None:  # the terrain's height under the base is ``ground`` unless given
+            surface_drop = self.start_surface.drop(xy, ground if self._terrain_ground else None)
         return StepSignals(
             gravity_z=self.gravity[:, 2],
-            height=s.base_pos[:, 2] - self.ground_height(s.base_pos[:, :2]),
+            height=s.base_pos[:, 2] - ground,
             body_contact=contacts.group_contact.any(axis=1),
-            displacement=np.linalg.norm(s.base_pos[:, :2] - self.start_xy, axis=1),
-            surface_drop=self.start_surface.drop(s.base_pos[:, :2]) if self.start_surface is not None else None,
+            displacement=vector_norm(xy - self.start_xy),
+            surface_drop=surface_drop,
             torso_gravity_z=self.torso.gravity_z(s.base_quat, s.q) if self.torso is not None else None,
         )
 
     def observation(self) -> dict[str, np.ndarray]:
         """The policy's proprioception (see `frbench.tasks.observations`)."""
-        return proprioception(self.state, self.previous_action, self.noise_rng)
+        gravity = self.gravity if self._gravity_state is self.state else None  # computed for this state already
+        return proprioception(self.state, self.previous_action, self.noise_rng, gravity)
 
     def advance(self, targets: np.ndarray) -> None:
         """Advance one control step towards ``targets`` (N, n_joints) [rad] (clipped to the joint limits):

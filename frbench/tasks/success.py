@@ -88,13 +88,14 @@ class StartSurface:
         self.incline = any(box.rotation()[2, 2] != 1.0 for box in terrain.boxes)
         self.z = np.array([support_height(terrain, xy, START_SURFACE_RADIUS_M) for xy in np.asarray(start_xy)])
 
-    def drop(self, base_xy: np.ndarray) -> np.ndarray:
-        """(N,) [m] the start surface's height minus the terrain height beneath ``base_xy`` (N, 2); 0 on an incline."""
+    def drop(self, base_xy: np.ndarray, terrain_height: np.ndarray | None = None) -> np.ndarray:
+        """(N,) [m] the start surface's height minus the terrain height beneath ``base_xy`` (N, 2); 0 on an incline.
+        ``terrain_height`` (N,) [m]: ``height_at(terrain, base_xy)`` when the caller has it already."""
         from frbench.terrains import height_at
 
         if self.incline:
             return np.zeros(len(base_xy))
-        return self.z - height_at(self.terrain, base_xy)
+        return self.z - (height_at(self.terrain, base_xy) if terrain_height is None else terrain_height)
 
 
 class TorsoFrame:
@@ -161,6 +162,7 @@ class SuccessTracker:
         else:
             self.min_height = MIN_HEIGHT_FRACTION * np.asarray(nominal_height)
             self.max_tilt_deg = MAX_TILT_DEG
+        self._cos_bound = np.cos(np.radians(self.max_tilt_deg))
 
     @property
     def up_height(self) -> "float | np.ndarray":
@@ -174,7 +176,7 @@ class SuccessTracker:
 
     def up_pose(self, s: StepSignals) -> np.ndarray:
         """(N,) the tilt, height and surface conditions (body contact not considered): the *upright bound*."""
-        cos_bound = np.cos(np.radians(self.max_tilt_deg))
+        cos_bound = self._cos_bound
         ok = (s.gravity_z <= -cos_bound) & (s.height >= self.min_height)
         if s.torso_gravity_z is not None:
             ok &= s.torso_gravity_z <= -cos_bound
@@ -188,14 +190,19 @@ class SuccessTracker:
 
     def update(self, s: StepSignals, alive: np.ndarray | None = None) -> None:
         """Feed one control step (``alive`` False for diverged episodes, which cannot succeed)."""
-        alive = np.ones_like(self.success) if alive is None else alive
         self._step += 1
-        up = self.upright(s) & alive
+        up = self.upright(s) if alive is None else self.upright(s) & alive
         self._streak = np.where(up, self._streak + 1, 0)
         done = (self._streak >= HOLD_STEPS) & ~self.success & (s.displacement < MAX_DISPLACEMENT)
         self.time_to_recover[done] = (self._step - HOLD_STEPS + 1) * CONTROL_DT
         self.success |= done
-        self.success &= alive
+        if alive is not None:
+            self.success &= alive
+
+
+def _where_ok(ok: np.ndarray | None, values: np.ndarray, other: "float | np.ndarray" = 0.0) -> np.ndarray:
+    """``np.where(ok, values, other)``; ``ok`` None means every row (then ``values`` themselves, the same numbers)."""
+    return values if ok is None else np.where(ok, values, other)
 
 
 class EpisodeMetrics:
@@ -216,16 +223,16 @@ class EpisodeMetrics:
 
     def update(self, q, qd, tau, angvel_x, body_force_max, displacement, diverged) -> None:
         """Feed one control step: q, qd, tau (N, n_joints); angvel_x, body_force_max, displacement (N,)."""
-        ok = ~diverged
-        self.energy += np.where(ok, np.abs(tau * qd).sum(axis=1) * CONTROL_DT, 0.0)
-        self.peak_contact_force = np.maximum(self.peak_contact_force, np.where(ok, body_force_max, 0.0))
-        self.max_displacement = np.maximum(self.max_displacement, np.where(ok, displacement, 0.0))
-        self.final_displacement = np.where(ok, displacement, self.final_displacement)
-        self.roll += np.where(ok, angvel_x * CONTROL_DT, 0.0)
+        ok = ~diverged if diverged.any() else None  # None: every row (the common step)
+        self.energy += _where_ok(ok, np.abs(tau * qd).sum(axis=1) * CONTROL_DT)
+        self.peak_contact_force = np.maximum(self.peak_contact_force, _where_ok(ok, body_force_max))
+        self.max_displacement = np.maximum(self.max_displacement, _where_ok(ok, displacement))
+        self.final_displacement = np.array(_where_ok(ok, displacement, self.final_displacement))
+        self.roll += _where_ok(ok, angvel_x * CONTROL_DT)
         self.rolled_over |= np.abs(self.roll) > np.pi
         self.diverged |= diverged
         if self._q_prev2 is not None:
-            self._second_diff_sum += np.where(ok, np.abs(q - 2 * self._q_prev + self._q_prev2).mean(axis=1), 0.0)
+            self._second_diff_sum += _where_ok(ok, np.abs(q - 2 * self._q_prev + self._q_prev2).mean(axis=1))
             self._second_diff_count += 1
         self._q_prev2, self._q_prev = self._q_prev, q.copy()
 

@@ -221,7 +221,7 @@ class RecoveryTrainingEnv(VecEnv):
         self.history = np.concatenate([self.history[:, 1:], o_t[:, None, :]], axis=1)
         if self.long_history is not None:
             self.long_history = np.concatenate([self.long_history[:, 1:], o_t[:, None, :]], axis=1)
-        log = {f"/reward/{k}": float(np.mean(v[alive])) / held if alive.any() else 0.0 for k, v in term_sums.items()}
+        log = {f"/reward/{k}": _alive_mean(v, alive) / held for k, v in term_sums.items()}
         done = self.task.t >= cfg.episode_steps
         if done:
             success = self.task.success.success.copy()
@@ -259,7 +259,8 @@ class RecoveryTrainingEnv(VecEnv):
             inputs.nominal_head_height = self.robots.nominal_head_height
         reward, terms = compute_rewards(inputs, self.reward_cfg)
         alive = task.alive
-        reward = np.where(alive, np.nan_to_num(reward), 0.0)
+        if not (alive.all() and np.isfinite(reward).all()):  # else the reward stays as it is
+            reward = np.where(alive, np.nan_to_num(reward), 0.0)
         self.env_steps += self.num_envs
         return reward, terms, alive
 
@@ -290,3 +291,10 @@ class RecoveryTrainingEnv(VecEnv):
     def close(self) -> None:
         """Free the simulator."""
         self.task.close()
+
+
+def _alive_mean(values: np.ndarray, alive: np.ndarray) -> float:
+    """Mean of ``values`` (N,) over the ``alive`` (N,) environments (0 when none is)."""
+    if alive.all():
+        return float(np.mean(values))
+    return float(np.mean(values[alive])) if alive.any() else 0.0

@@ -33,8 +33,8 @@ def can_stand(spec: RobotSpec, kp: float, kd: float, backend: str = "mujoco") ->
     from frbench.robots.sim_urdf import sim_robot_file
 
     key = content_key(spec, sim_robot_file(spec).path.read_bytes(), float(kp), float(kd), backend,
-                      source_key(__name__, "frbench.backends.base", f"frbench.backends.{backend}_backend",
-                                 "frbench.backends.mujoco_model"))
+                      source_key(__name__, "frbench.backends.base", "frbench.backends.contact_layout",
+                                 f"frbench.backends.{backend}_backend", "frbench.backends.mujoco_model"))
     return cached_bytes("feasibility", key, ".json",
                         lambda: json.dumps(_stands(spec, kp, kd, backend)).encode(), lambda data: bool(json.loads(data)))
 

@@ -40,19 +40,32 @@ class HeightRaster:
                                     lambda data: np.frombuffer(data, dtype=np.float32).reshape(len(tile_keys), n, n))
         self.floor = float(grid.world.floor_z)
         self.n = n
+        # one cell of the world's floor height (as float32, the rasters' type) around every raster: a point off
+        # the raster reads it after its cell indices are clipped to [-1, n]
+        self._bordered = np.pad(self.heights, ((0, 0), (1, 1), (1, 1)), constant_values=np.float32(self.floor)).ravel()
 
     def lookup(self, tile: np.ndarray, xy: np.ndarray) -> np.ndarray:
         """Heights [m] at world points ``xy`` (N, P, 2) for environments on tiles ``tile`` (N,) (row indices)."""
-        rel = (xy - self.centres[tile][:, None, :] + HALF_SIZE) / RESOLUTION
-        ij = np.rint(rel).astype(np.int64)
-        inside = np.all((ij >= 0) & (ij < self.n), axis=-1)
-        ij = np.clip(ij, 0, self.n - 1)
-        heights = self.heights[tile[:, None], ij[..., 0], ij[..., 1]]
-        return np.where(inside, heights, self.floor)
+        return self._heights(tile, xy[..., 0], xy[..., 1])
+
+    def _heights(self, tile: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Heights (N, P) float32 [m] at world points (``x``, ``y``) (N, P) each: the nearest raster cell of each
+        environment's tile, the floor off the raster."""
+        centres, side = self.centres[tile], self.n + 2
+        i = np.rint((x - centres[:, :1] + HALF_SIZE) / RESOLUTION).astype(np.int64)
+        j = np.rint((y - centres[:, 1:] + HALF_SIZE) / RESOLUTION).astype(np.int64)
+        np.clip(i, -1, self.n, out=i)
+        np.clip(j, -1, self.n, out=j)
+        i += 1
+        i *= side
+        i += j + 1
+        i += (tile * (side * side))[:, None]
+        return self._bordered[i]
 
     def scan(self, tile: np.ndarray, base_pos: np.ndarray, yaw: np.ndarray) -> np.ndarray:
         """The 187-point scan (N, 187): base z − terrain height at the yaw-frame grid (see `height_scan`)."""
         c, s = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
         px, py = SCAN_POINTS[:, 0][None], SCAN_POINTS[:, 1][None]
-        xy = np.stack([base_pos[:, :1] + c * px - s * py, base_pos[:, 1:2] + s * px + c * py], axis=-1)
-        return base_pos[:, 2:3] - self.lookup(tile, xy)
+        x = base_pos[:, :1] + c * px - s * py
+        y = base_pos[:, 1:2] + s * px + c * py
+        return base_pos[:, 2:3] - self._heights(tile, x, y)

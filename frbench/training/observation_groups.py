@@ -29,9 +29,10 @@ def observation_groups(o_t: np.ndarray, history: np.ndarray, long_history: np.nd
     ``com_xy`` (N, 2) [m], ``scan`` (N, P) [m], ``diverged`` (N,) bool."""
     s, c, p = state, contacts, params
     n = len(o_t)
+    contact = c.group_contact.astype(float)
     privileged = np.concatenate([
         o_t, np.clip(scan, -1.0, 1.0), masses, p.kp, p.kd, com_xy,
-        c.group_contact.astype(float), np.minimum(c.foot_force, 500.0) / 100.0, p.friction[:, None],
+        contact, np.minimum(c.foot_force, 500.0) / 100.0, p.friction[:, None],
     ], axis=1)
     velocity = rotate_to_body(s.base_quat, s.base_linvel)
     extrinsics = np.concatenate([
@@ -40,14 +41,20 @@ def observation_groups(o_t: np.ndarray, history: np.ndarray, long_history: np.nd
     ], axis=1)
     groups = {
         "policy": o_t, "history": history.reshape(n, -1), "privileged": privileged,
-        "mass": masses, "contact": c.group_contact.astype(float), "velocity": velocity,
+        "mass": masses, "contact": contact, "velocity": velocity,
         "extrinsics": extrinsics,
     }
     if long_history is not None:
         groups["long_history"] = long_history.reshape(n, -1)
-    alive = ~diverged
-    tensors = {}
-    for key, value in groups.items():
-        value = np.where(alive[:, None], np.nan_to_num(value, nan=0.0, posinf=0.0, neginf=0.0), 0.0)
-        tensors[key] = torch.as_tensor(value, dtype=torch.float32)
+    alive = None if not diverged.any() else ~diverged
+    tensors = {key: torch.as_tensor(_zero_invalid(value, alive), dtype=torch.float32) for key, value in groups.items()}
     return TensorDict(tensors, batch_size=[n])
+
+
+def _zero_invalid(value: np.ndarray, alive: np.ndarray | None) -> np.ndarray:
+    """``value`` (N, k) with NaN and infinities as zeros, and the rows not ``alive`` (N,) zero (None: all are
+    alive); a float64 ``value`` itself when nothing changes (its float32 tensor is then a converted copy)."""
+    if alive is None and value.dtype == np.float64 and np.isfinite(value).all():
+        return value
+    cleaned = np.nan_to_num(value, nan=0.0, posinf=0.0, neginf=0.0)
+    return cleaned if alive is None else np.where(alive[:, None], cleaned, 0.0)
