@@ -86,3 +86,93 @@ def test_check_json_reports_the_derived_values(capsys):
     assert len(report["derivation"]["kp"]) == 12 and report["derivation"]["kp"] == report["kp"]
     assert report["kinematic_height"] == pytest.approx(0.2676, abs=1e-3)
     assert abs(report["standing"]["mujoco"]["nominal_height"] - report["kinematic_height"]) < 0.1 * report["kinematic_height"]
+
+
+# --- humanoids given by path: the derivation for the class (frbench.robots.humanoid_gains) -----------------------
+
+
+def _derivation(spec) -> dict:
+    return json.loads(dict(spec.extra)["derivation"])
+
+
+def test_g1_by_path_gets_its_step_from_the_derivation_and_sways_within_its_feet():
+    from frbench.robots.gains import A_MAX
+    from frbench.robots.humanoid_gains import SWAY_FRACTION
+
+    spec = spec_from_path(example_robot_data("g1_description/urdf/g1_29dof_rev_1_0.urdf"), measure=False)
+    d = _derivation(spec)
+    # no per-joint balance floor: the ankle rolls were 217 N·m/rad on 0.4 g·m² of foot, which forced 1 ms
+    assert spec.physics_dt == d["physics_dt"] == 0.0025 and d["mode_b"] <= B_MAX and d["mode_a"] <= A_MAX * 1.001
+    assert d["standing_stiffness"] >= 0 > d["gravity_stiffness"]  # it falls without its PD, stands with it (gravity x2)
+    assert 0 < d["sway"] <= SWAY_FRACTION * d["support_margin"] * 1.001
+    left, right = spec.joint_names.index("left_ankle_pitch_joint"), spec.joint_names.index("right_ankle_pitch_joint")
+    assert spec.kp[left] == spec.kp[right] and spec.kd[left] == spec.kd[right]
+    wrist = spec.joint_names.index("left_wrist_yaw_joint")
+    assert spec.kd[wrist] > 0.05  # Kd lowered only in the stiffest damping mode, not a tenth everywhere (0.013 flailed)
+
+
+def test_talos_stands_on_its_soles_in_both_simulators():
+    """Talos' lowest leaf is a sole frame with no geometry and its ankle mesh's principal axes are 10° off the sole."""
+    from frbench.robots.humanoid_gains import support
+
+    spec = get_robot(str(example_robot_data("talos_data/robots/talos_reduced.urdf")))
+    assert spec.foot_links == ("leg_left_6_link", "leg_right_6_link")
+    feet = support(spec)
+    np.testing.assert_allclose(feet.depth, [0.221, 0.304], atol=2e-3)  # two flat soles, not two box edges
+    assert float(dict(spec.extra)["kinematic_height"]) == pytest.approx(1.0533, abs=1e-3)  # the fitted sole, not the frame
+    report = check_robot(spec, n_random=1)
+    assert report.ok, report.problems
+    assert report.physics_dt == 0.0025 and report.support["tilt_margin"] == pytest.approx(0.112, abs=0.005)
+    for name in ("mujoco", "pybullet"):
+        assert report.standing[name]["height"] == pytest.approx(1.050, abs=0.01)
+
+
+def test_icub_is_turned_to_face_forward_with_its_feet_along_x():
+    """iCub's root frame has x backwards and y to the right; its COLLADA meshes are drawn y-up."""
+    from frbench.robots.humanoid_gains import support
+
+    spec, _, legs = provisional_spec(example_robot_data("icub_description/robots/icub_reduced.urdf"))
+    np.testing.assert_allclose(np.reshape(spec.root_rotation, (3, 3)), np.diag([-1.0, -1.0, 1.0]), atol=1e-12)
+    assert legs["left"][0] == "l_hip_pitch" and spec.foot_links == ("l_ankle_2", "r_ankle_2")
+    knee = spec.joint_names.index("l_knee")
+    assert spec.default_pose[knee] == spec.default_pose[spec.joint_names.index("r_knee")] < -0.3
+    feet = support(spec)
+    assert feet.depth[0] == pytest.approx(0.156, abs=2e-3)  # each foot 0.156 m long in x, 0.062 m wide
+    assert feet.polygon[:, 1].min() == pytest.approx(-feet.polygon[:, 1].max(), abs=1e-3)
+
+
+def test_bolt_fails_the_check_saying_why_no_key_can_fix_it(capsys):
+    """Bolt has no ankles and 1.6 cm feet: a tilt of less than 0.01 rad carries its CoM off them."""
+    path = str(example_robot_data("bolt_description/robots/bolt.urdf"))
+    report = check_robot(get_robot(path), n_random=1)
+    assert not report.ok and len(report.problems) == 1
+    problem = report.problems[0]
+    assert problem.startswith("cannot stand by holding a pose: its CoM is 0.004 m outside the feet's support polygon")
+    assert "no sidecar key can fix it: its feet are at most 0.032 m across" in problem
+    assert "give each foot link a sole (a box collision) at least 0.038 m long" in problem
+    assert report.support["tilt_margin"] < 0.05
+    assert main(["robot", "check", path]) == 1
+
+
+def test_bolt_with_soles_and_a_straight_pose_stands(tmp_path):
+    """The message's remedy works: soles in the URDF, then the [default_pose] the next message asks for."""
+    import re as regex
+
+    text = example_robot_data("bolt_description/robots/bolt.urdf").read_text()
+    for side in ("FL", "FR"):
+        start = text.index(f'<link name="{side}_FOOT">')
+        end = text.index("</link>", start)
+        block = regex.sub(r"<collision>.*?</collision>", "", text[start:end], flags=regex.S)
+        sole = '<collision><origin xyz="0 0 -0.01"/><geometry><box size="0.08 0.05 0.01"/></geometry></collision>'
+        text = text[:start] + block + sole + text[end:]
+    path = tmp_path / "bolt_soles.urdf"
+    path.write_text(text)
+    report = check_robot(get_robot(str(path)), n_random=1)
+    assert not report.ok and "set [default_pose] in the sidecar so the soles lie flat" in report.problems[0]
+    (tmp_path / "bolt_soles.frbench.toml").write_text(
+        "[default_pose]\nFL_HFE = 0.0\nFL_KFE = 0.0\nFR_HFE = 0.0\nFR_KFE = 0.0\n"
+    )
+    report = check_robot(spec_from_path(path), n_random=1)
+    assert report.ok, report.problems
+    for name in ("mujoco", "pybullet"):
+        assert report.standing[name]["height"] > 0.9 * report.kinematic_height

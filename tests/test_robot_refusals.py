@@ -252,3 +252,64 @@ def test_round_off_in_an_inertia_counts_as_zero(tmp_path, quadruped_urdf_text):
     tree = build_sim_tree(spec)
     moments = np.linalg.eigvalsh(tree.links["FL_foot"].inertia)
     assert moments.min() > 0 and moments.max() == pytest.approx(1e-6, rel=1e-2)
+
+
+# --- humanoid files of example-robot-data that cannot be simulated as they are: each refusal says what to change ---
+
+HUMANOID_REFUSALS = [
+    ("simple_humanoid_description/urdf/simple_humanoid.urdf",
+     "foot link 'l_ankle' has no collision geometry, so nothing of the foot touches the ground; add a <collision> "
+     "(a box under the sole) to it in the URDF, or name the links that have one in"),
+    ("alexander_description/urdf/alexander_v1.lowerBodyOnly.urdf",  # legs found through the IMU frames on hips and knees
+     "foot link 'LEFT_FOOT' has no collision geometry"),
+    ("romeo_description/urdf/romeo_laas_small.urdf",
+     "link 'l_gripper' has no <inertial> and nothing below it, so joint 'l_gripper_joint' moves no mass (a simulator "
+     "cannot integrate it); give the link an <inertial> or make the joint fixed in the URDF"),
+    ("romeo_description/urdf/romeo.urdf",
+     "joint 'LHand' has no positive effort limit (effort=0.0), nor have 23 more (RHand, LFinger12, LFinger13, "),
+    ("romeo_description/urdf/romeo_small.urdf", "link 'RShoulderYawLink' inertia violates the triangle inequality"),
+]
+
+
+@pytest.mark.parametrize("relative, message", HUMANOID_REFUSALS, ids=[r.split("/")[-1] for r, _ in HUMANOID_REFUSALS])
+def test_humanoid_file_is_refused_with_what_to_change(relative, message):
+    from frbench.robots.paths import example_robot_data
+
+    path = example_robot_data(relative)
+    with pytest.raises(RobotFileError, match=re.escape(f"{path}: {message}")):
+        get_robot(str(path))
+
+
+def test_a_virtual_link_between_two_joints_gets_a_negligible_mass(tmp_path):
+    """human.urdf's hips are three revolute joints through links without <inertial>: simulated, not refused."""
+    from frbench.robots.paths import example_robot_data
+    from frbench.robots.sim_urdf import MASSLESS_FOOT_MASS
+
+    text = example_robot_data("human_description/robots/human.urdf").read_text()
+    for foot in ("left_foot", "right_foot"):  # the file has no collision geometry at all: give the feet soles
+        text = text.replace(
+            f'<link name="{foot}">',
+            f'<link name="{foot}"><collision><origin xyz="0.05 0 -0.05"/><geometry><box size="0.2 0.08 0.02"/></geometry></collision>',
+        )
+    path = _robot(tmp_path, text, "human")
+    from frbench.robots.infer import provisional_spec
+    from frbench.robots.sim_urdf import build_sim_tree
+
+    spec, _, legs = provisional_spec(path)
+    assert spec.kind == "humanoid" and legs["left"][0] == "left_hip_Z"
+    assert build_sim_tree(spec).links["left_upperleg_virtual"].mass == MASSLESS_FOOT_MASS
+
+
+def test_a_humanoid_whose_ankles_cannot_hold_it_names_every_such_joint(tmp_path):
+    from frbench.robots.paths import example_robot_data
+
+    path = _robot(tmp_path, example_robot_data("g1_description/urdf/g1_29dof_rev_1_0.urdf").read_text(), "g1copy")
+    side = tmp_path / "g1copy.frbench.toml"
+    side.write_text("[effort]\nleft_ankle_pitch_joint = 5.0\nright_ankle_pitch_joint = 5.0\n")
+    message = (
+        f"{path}: 2 joint(s) need more than 80% of their effort limit to hold the standing pose (left_ankle_pitch_joint "
+        f"6.29 of 5, right_ankle_pitch_joint 6.29 of 5 N·m); set effort.left_ankle_pitch_joint and the others in {side} "
+        "(or a less crouched [default_pose])"
+    )
+    with pytest.raises(RobotFileError, match=re.escape(message)):
+        get_robot(str(path))

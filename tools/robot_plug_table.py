@@ -1,9 +1,12 @@
 """Regenerate the robot-plug table: `frbench robot check` on every legged URDF of the installed packages.
 
 For each file: kind, mass, derived Kp/Kd (first leg's joints), physics step,
-measured standing heights (MuJoCo / PyBullet), check result and time. Runs the
-checks one after the other in this process (each with a cold cache, so the
-time includes the gain derivation and the height measurement).
+measured standing heights (MuJoCo / PyBullet), check result and time; for
+humanoids the whole left leg's gains (pelvis to foot), the kinematic height and
+the support margin (the tilt that carries the CoM to the edge of the feet,
+`frbench.robots.check.static_support`). Runs the checks one after the other in
+this process (each with a cold cache, so the time includes the gain derivation
+and the height measurement).
 
     PYTHONPATH=$PWD python tools/robot_plug_table.py quadrupeds --json /tmp/quadrupeds.json
     PYTHONPATH=$PWD python tools/robot_plug_table.py humanoids
@@ -86,6 +89,11 @@ def check_one(entry: str, sidecar: str | None = None) -> dict:
         row.update(result="refused", message=str(exc).replace(resolve(entry), entry), seconds=time.perf_counter() - started)
         return row
     standing = {name: result["height"] for name, result in report.standing.items()}
+    if report.support is not None:
+        row["support_tilt"] = report.support["tilt_margin"]
+    if spec.kind == "humanoid":
+        left = json.loads(dict(spec.extra)["legs"])["left"]
+        row["left_leg"] = {j: [spec.kp[spec.joint_names.index(j)], spec.kd[spec.joint_names.index(j)]] for j in left}
     row.update(
         kind=spec.kind, mass=ground_truth.total_mass(spec), dof=spec.n_joints, physics_dt=spec.physics_dt,
         kp=list(spec.kp), kd=list(spec.kd), kinematic_height=report.kinematic_height,
@@ -115,6 +123,27 @@ def markdown(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def humanoid_markdown(rows: list[dict]) -> str:
+    """The humanoid table as Markdown: the left leg's gains from the pelvis to the foot."""
+    lines = [
+        "| file | mass [kg] | dof | Kp left leg, pelvis → foot [N·m/rad] | Kd [N·m·s/rad] | dt [s] | "
+        "height kinematic / MJ / PB [m] | support tilt [rad] | result | time [s] | message |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        if r["result"] == "refused":
+            lines.append(f"| {r['file']} | | | | | | | | refused | {r['seconds']:.1f} | {r['message']} |")
+            continue
+        kp = "/".join(f"{v[0]:.3g}" for v in r["left_leg"].values())
+        kd = "/".join(f"{v[1]:.3g}" for v in r["left_leg"].values())
+        heights = " / ".join(f"{h:.3f}" for h in [r["kinematic_height"], *r["standing"].values()])
+        lines.append(
+            f"| {r['file']} | {r['mass']:.2f} | {r['dof']} | {kp} | {kd} | {r['physics_dt']:g} | {heights} | "
+            f"{r.get('support_tilt', float('nan')):.3f} | {r['result']} | {r['seconds']:.1f} | {r['message']} |"
+        )
+    return "\n".join(lines)
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("which", choices=("quadrupeds", "humanoids"))
@@ -130,7 +159,7 @@ def main() -> int:
         if args.json:
             with open(args.json, "w") as handle:
                 json.dump(rows, handle, indent=1)
-    print(markdown(rows))
+    print(humanoid_markdown(rows) if args.which == "humanoids" else markdown(rows))
     passed = sum(r["result"] == "pass" for r in rows)
     print(f"\n{passed}/{len(rows)} pass")
     return 0

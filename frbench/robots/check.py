@@ -5,8 +5,11 @@ whole-body CoM at the default pose and at random configurations, then holds
 it standing with the PD for 2 s in both simulators. For a robot given by path
 the report also carries its derived gains and physics step (`frbench.robots.gains`),
 its kinematic and measured standing heights, and the check fails when a
-simulator settles more than `SAG_TOLERANCE` below the kinematic height. A plugin
-author runs this on a new robot; the test suite runs it on every built-in one.
+simulator settles more than `SAG_TOLERANCE` below the kinematic height. A
+humanoid must first be able to stand on its feet at all (`static_support`):
+a biped on point or line feet (Bolt) balances by control, not by holding a
+pose, and the check says so instead of reporting its fall. A plugin author
+runs this on a new robot; the test suite runs it on every built-in one.
 """
 
 from __future__ import annotations
@@ -25,6 +28,9 @@ COM_TOLERANCE = 1e-4  # m
 HEIGHT_TOLERANCE = 0.10  # fraction of nominal height
 FORCE_TOLERANCE = 0.05  # fraction of m·g
 SAG_TOLERANCE = 0.10  # fraction of the kinematic standing height (robots given by path)
+#: [rad] a humanoid's CoM must be this far from the edge of its feet's support polygon, as a tilt about that
+#: edge (edge distance / CoM height), to stand by holding a pose: G1 has 0.12, Talos 0.11, iCub 0.14, Bolt 0.025.
+MIN_TILT_MARGIN = 0.05
 STAND_SECONDS = 2.0
 BACKEND_NAMES = ("mujoco", "pybullet")
 
@@ -40,6 +46,7 @@ class CheckReport:
     com: dict[str, list] = field(default_factory=dict)
     max_com_error: float = 0.0
     standing: dict[str, dict] = field(default_factory=dict)
+    support: dict | None = None
     kind: str = ""
     physics_dt: float = 0.0
     kp: list = field(default_factory=list)
@@ -100,10 +107,16 @@ def check_robot(spec: RobotSpec, n_random: int = 3, seed: int = 0, stand: bool =
         report.problems.append(f"total mass differs by {report.max_mass_error:.3g} kg (tolerance {MASS_TOLERANCE:g})")
     if report.max_com_error > COM_TOLERANCE:
         report.problems.append(f"centre of mass differs by {report.max_com_error:.3g} m (tolerance {COM_TOLERANCE:g})")
+    if stand and spec.kind == "humanoid":
+        report.support = static_support(spec)
+        if not report.support["ok"]:
+            report.problems.append(report.support["reason"])
     if stand:
         for name in BACKEND_NAMES:
             result = stand_test(spec, name)
             report.standing[name] = result
+            if report.support and not report.support["ok"]:
+                continue  # it falls; the support problem says why
             if not result["ok"]:
                 report.problems.append(f"{name}: does not stand ({result['reason']})")
             kinematic = report.kinematic_height
@@ -115,6 +128,42 @@ def check_robot(spec: RobotSpec, n_random: int = 3, seed: int = 0, stand: bool =
     report.ok = not report.problems
     report.seconds = time.perf_counter() - started
     return report
+
+
+def static_support(spec: RobotSpec) -> dict:
+    """Can the humanoid's feet hold its CoM? The support polygon at the default pose against `MIN_TILT_MARGIN`.
+
+    Returns {"ok", "reason", "edge_distance" [m], "tilt_margin" [rad], "com_height" [m], "polygon_depth" [m, m]}.
+    The reason names what would fix it: a pose that brings the CoM over the feet (``default_pose``)
+    when the feet are long enough, else soles in the URDF (no sidecar key adds foot area).
+    """
+    from frbench.robots.humanoid_gains import support
+
+    feet = support(spec)
+    height = float(feet.com[2])
+    need = MIN_TILT_MARGIN * height
+    out = {
+        "ok": feet.tilt_margin >= MIN_TILT_MARGIN, "reason": "", "edge_distance": feet.edge_distance,
+        "tilt_margin": feet.tilt_margin, "com_height": height, "polygon_depth": [float(v) for v in feet.depth],
+    }
+    if out["ok"]:
+        return out
+    # the best a pose can do: soles set flat, the CoM over their middle, half the shorter extent from an edge
+    best = min(max(float(feet.depth[0]), feet.sole_length), float(feet.depth[1])) / 2
+    if best >= need:
+        fix = (f"set [default_pose] in the sidecar so the soles lie flat and the CoM stands over their middle "
+               f"(they leave up to {best:.3f} m)")
+    else:
+        fix = (f"no sidecar key can fix it: its feet are at most {feet.sole_length:.3f} m across, {best:.3f} m on each "
+               f"side of the CoM in any pose; give each foot link a sole (a box collision) at least {2 * need:.3f} m "
+               f"long, or balance it with a controller (the standing test holds a pose)")
+    where = "from the edge of" if feet.edge_distance >= 0 else "outside"
+    out["reason"] = (
+        f"cannot stand by holding a pose: its CoM is {abs(feet.edge_distance):.3f} m {where} the feet's support "
+        f"polygon ({feet.depth[0]:.3f} m × {feet.depth[1]:.3f} m), a tilt of {feet.tilt_margin:.3f} rad at its CoM "
+        f"height {height:.3f} m (at least {MIN_TILT_MARGIN:g} rad, {need:.3f} m, needed); {fix}"
+    )
+    return out
 
 
 def stand_test(spec: RobotSpec, backend_name: str, seconds: float = STAND_SECONDS) -> dict:

@@ -3,25 +3,36 @@
 Legs. Every leaf of the kinematic tree ends a chain of moving joints from the
 root; chains that share their last moving joint are one limb (a foot with
 sensor frames is one leg). A limb is a *leg* when it has at least three moving
-joints, starts with a joint no other limb shares (arms and fingers share a
-waist or shoulder joint), and its leaf hangs, at the zero pose, more than half
+joints, starts with a joint no branching limb shares (arms and fingers share a
+waist or shoulder joint; frames hanging off a leg's hip or knee are stretches
+of the leg, not branches), and its leaf hangs, at the zero pose, more than half
 as far below the root as the lowest such leaf (when no limb hangs below the root at the zero pose,
 every such limb is a leg). Four legs make a quadruped (legs FL, FR, RL, RR from
 where their hips sit; the last three joints are hip, thigh, calf), two a
 humanoid (left, right; the other limbs, branching from the torso, are arms and
 head). Any other count is refused with the count and the sidecar keys to set
-(``kind``, ``legs``).
+(``kind``, ``legs``). A humanoid's foot is its leg's lowest leaf when that
+carries collision geometry, else the link the leg's last joint moves (fixed
+children merged in: Talos' and iCub's soles sit there, their leaves are bare
+frames); a foot with no geometry at all is refused, naming the URDF fix and
+the sidecar's ``feet``.
 
 Standing pose. Each leg's pitch joints (axis along the body's y) are searched
 over their limits for the pose that puts the foot under the hip at
 `QUADRUPED_REACH` (quadruped) or `HUMANOID_REACH` (humanoid, foot kept flat) of
 the leg's reach, preferring the knee direction with more room inside the
-limits; other joints stay at 0 (clipped into their limits). A continuous joint
-gets limits of ±π unless the sidecar's ``joint_limits`` names it, and so does a
-joint whose file limits span more than a turn (placeholders such as ±10 rad). A file drawn
-y-up is turned upright first (`upright_rotation`, recorded in the spec).
+limits; other joints stay at 0 (clipped into their limits). A humanoid's foot
+keeps its zero-pose orientation: the ankle pitch cancels the signed sum of the
+hip and knee pitch (signs from the joints' axes; iCub's ankle axis is −y). A
+continuous joint gets limits of ±π unless the sidecar's ``joint_limits`` names
+it, and so does a joint whose file limits span more than a turn (placeholders
+such as ±10 rad). A file drawn y-up is turned upright first
+(`upright_rotation`, recorded in the spec), a biped drawn facing −x is turned
+about z. A humanoid's kinematic standing height puts the lowest point of its
+*simulated* geometry (meshes fitted to boxes) on the ground.
 
-Gains and physics step: :mod:`frbench.robots.gains`. Nominal height: measured
+Gains and physics step: :mod:`frbench.robots.gains` (quadrupeds),
+:mod:`frbench.robots.humanoid_gains` (humanoids). Nominal height: measured
 by settling in both simulators (:mod:`frbench.robots.standing`).
 
 The sidecar (``<stem>.frbench.toml``, :mod:`frbench.robots.sidecar`) overrides
@@ -102,11 +113,19 @@ def upright_rotation(tree: UrdfTree) -> np.ndarray:
     zero pose; the leg direction is snapped to the nearest axis, the long axis
     of the feet's footprint becomes x, pointing to the legs whose names say
     front (FL, LF, front, ...).
+
+    A biped (two leg candidates, `leg_candidates`, hanging below the root) is
+    judged by its legs alone, so hands reaching forward do not tip it
+    (G1 with hands), and is turned about z so that the leg whose names say
+    left is at +y (iCub's root frame has x backward and y to the right).
     """
     limbs = [limb for limb in _limbs(tree) if len(limb[1]) >= 3]
     if not limbs:
         return np.eye(3)
     poses = link_poses(tree, {})
+    biped = _biped_rotation(tree, limbs, poses)
+    if biped is not None:
+        return biped
     feet = np.array([poses[leaf][:3, 3] for leaf, _, _ in limbs])
     mean = feet.mean(axis=0)
     axis = int(np.argmax(np.abs(mean)))
@@ -134,11 +153,56 @@ def upright_rotation(tree: UrdfTree) -> np.ndarray:
     return np.array([forward, np.cross(up, forward), up])
 
 
+def _named_left(limb) -> bool:
+    leaf, joints = limb[0], limb[1]
+    return bool(re.search(r"(^|[^a-z])(left|l)([^a-z]|$)|^l", " ".join([leaf, *joints]).lower()))
+
+
+def _unbranched(limbs):
+    """The limbs whose first joint starts no other limb's branch: one limb per first joint.
+
+    Limbs that share their first joint are one limb when each is a stretch of the longest
+    (sensor and collision frames hanging off a leg's hip or knee: Romeo, Alexander); they
+    branch when they part ways (arms off a waist, fingers off a wrist), and then none counts.
+    """
+    out = []
+    for first in dict.fromkeys(joints[0] for _, joints, _ in limbs):
+        same = [limb for limb in limbs if limb[1][0] == first]
+        longest = max(same, key=lambda limb: len(limb[1]))
+        if all(limb[1] == longest[1][: len(limb[1])] for limb in same):
+            out.append(longest)
+    return out
+
+
+def _biped_rotation(tree: UrdfTree, limbs, poses) -> np.ndarray | None:
+    """The rotation of `upright_rotation` for a biped, or None when the limbs that are no arms are not two legs."""
+    own = _unbranched(limbs)
+    if len(own) < 2:
+        return None
+    feet = np.array([poses[leaf][:3, 3] for leaf, _, _ in own])
+    mean = feet.mean(axis=0)
+    axis = int(np.argmax(np.abs(mean)))
+    if np.linalg.norm(mean) < 1e-6:
+        return None
+    up = np.zeros(3)
+    up[axis] = -np.sign(mean[axis])
+    drops = -(feet @ up)
+    lowest = [own[i] for i in range(len(own)) if drops[i] > LEG_DROP_FRACTION * drops.max()]
+    if len(lowest) != 2:
+        return None
+    low = np.array([poses[leaf][:3, 3] for leaf, _, _ in lowest])
+    side_axis = max((k for k in range(3) if k != axis), key=lambda k: abs(low[0, k] - low[1, k]))
+    left = np.zeros(3)
+    left[side_axis] = 1.0
+    named = [i for i in range(2) if _named_left(lowest[i])]
+    if len(named) == 1 and low[named[0], side_axis] < low[1 - named[0], side_axis]:
+        left = -left
+    return np.array([np.cross(left, up), left, up])
+
+
 def leg_candidates(tree: UrdfTree) -> list[tuple[str, list[str]]]:
     """(foot link, joints) of every limb that is a leg (module docstring)."""
-    limbs = [limb for limb in _limbs(tree) if len(limb[1]) >= 3]
-    first = [joints[0] for _, joints, _ in limbs]
-    limbs = [limb for limb in limbs if first.count(limb[1][0]) == 1]  # arms and fingers share a waist or shoulder joint
+    limbs = _unbranched([limb for limb in _limbs(tree) if len(limb[1]) >= 3])  # arms and fingers share a waist or shoulder joint
     if not limbs:
         return []
     lowest = max(drop for _, _, drop in limbs)
@@ -171,7 +235,10 @@ def infer_legs(tree: UrdfTree, kind: str | None, label: str) -> tuple[str, dict[
                 f"{label}: two legs sit at the {leg} {'corner' if kind == 'quadruped' else 'side'} "
                 f"({named[leg][1]} and {leaf}); name them in the sidecar's [legs] table"
             )
-        named[leg] = (joints, leaf)
+        # a humanoid's lowest leaf is often a frame without geometry (Talos' sole_link, iCub's frames): its foot
+        # is then the link its last joint moves, fixed children merged in, where the sole's geometry sits
+        foot = leaf if kind == "quadruped" or tree.links[leaf].collisions else tree.joints[joints[-1]].child
+        named[leg] = (joints, foot)
     return kind, named
 
 
@@ -191,15 +258,15 @@ def _limits(tree: UrdfTree, side: Sidecar, joint: str, label: str) -> tuple[floa
     return float(j.lower), float(j.upper)
 
 
+def _pitch_axis_y(tree: UrdfTree, name: str) -> float:
+    """The y component of joint ``name``'s axis in the root frame at the zero pose."""
+    joint = tree.joints[name]
+    rotation = link_poses(tree, {})[joint.parent][:3, :3] @ joint.origin[:3, :3]
+    return float((rotation @ (joint.axis / np.linalg.norm(joint.axis)))[1])
+
+
 def _pitch_joints(tree: UrdfTree, joints: list[str]) -> list[str]:
-    poses = link_poses(tree, {})
-    out = []
-    for name in joints:
-        joint = tree.joints[name]
-        axis = poses[joint.parent][:3, :3] @ joint.origin[:3, :3] @ (joint.axis / np.linalg.norm(joint.axis))
-        if abs(axis[1]) > PITCH_AXIS:
-            out.append(name)
-    return out
+    return [name for name in joints if abs(_pitch_axis_y(tree, name)) > PITCH_AXIS]
 
 
 def _stand_leg(tree: UrdfTree, joints: list[str], foot: str, limits: dict, reach_fraction: float, flat: bool) -> dict[str, float]:
@@ -214,8 +281,9 @@ def _stand_leg(tree: UrdfTree, joints: list[str], foot: str, limits: dict, reach
     u, k = (g.ravel() for g in np.meshgrid(np.linspace(*limits[upper], 41), np.linspace(*limits[knee], 41), indexing="ij"))
     q = {j: np.full(len(u), v) for j, v in pose.items()}
     q[upper], q[knee] = u, k
-    if ankle is not None:
-        q[ankle] = np.clip(-(u + k), *limits[ankle])
+    if ankle is not None:  # the foot keeps its zero-pose orientation: signed pitch angles sum to zero
+        sign = {j: float(np.sign(_pitch_axis_y(tree, j))) for j in (upper, knee, ankle)}
+        q[ankle] = np.clip(-(sign[upper] * u + sign[knee] * k) * sign[ankle], *limits[ankle])
     poses = chain_poses_batch(tree, foot, q)
     offset = poses[foot][:, :3, 3] - poses[top][:, :3, 3]  # (N, 3)
     tilt = np.abs(poses[foot][:, 0, 2]) if ankle is not None else 0.0
@@ -290,6 +358,11 @@ def _legs_from_sidecar(tree: UrdfTree, side: Sidecar, kind: str) -> dict[str, tu
     return out
 
 
+def _few_names(names: list[str], most: int = 40) -> str:
+    """Up to ``most`` names, comma-separated, then how many more."""
+    return ", ".join(names[:most]) + (f", ... {len(names) - most} more" if len(names) > most else "")
+
+
 def safe_name(stem: str) -> str:
     """A registry name from a file stem: lower case, unsafe characters as '_'."""
     from frbench.robots.sim_urdf import safe_file_stem
@@ -338,21 +411,33 @@ def provisional_spec(urdf: str | Path, sidecar: str | Path | None = None, name: 
     side.check_complete(joint_names)
     limits = {j: _limits(tree, side, j, label) for j in joint_names}
     check_pose_in_limits(side, {j: v[0] for j, v in limits.items()}, {j: v[1] for j, v in limits.items()})
-    effort = {}
+    effort, missing = {}, []
     for j in joint_names:
         value = side.effort.get(j) if isinstance(side.effort, dict) else side.effort
         if value is None:
             value = tree.joints[j].effort
             if value is None or value <= 0:
-                raise RobotFileError(
-                    f"{label}: joint {j!r} has no positive effort limit (effort={value}); set effort.{j} (N·m) "
-                    f"or effort for every joint in {side.label}"
-                )
+                missing.append((j, value))
+                continue
         effort[j] = float(value)
+    if missing:  # all of them in one line: Romeo's fingers are fourteen joints of effort 0
+        (j, value), more = missing[0], [name for name, _ in missing[1:]]
+        others = f", nor have {len(more)} more ({_few_names(more)})" if more else ""
+        each = f"effort.{j}" + (" and each of those" if more else "")
+        raise RobotFileError(
+            f"{label}: joint {j!r} has no positive effort limit (effort={value}){others}; set {each} (N·m) "
+            f"or effort for every joint in {side.label}"
+        )
     merged = merge_fixed_joints(tree, keep_links=set(feet))
     for foot in feet:
         if foot not in merged.links:
             raise RobotFileError(f"{label}: foot link {foot!r} is not in the file")
+        if kind == "humanoid" and not merged.links[foot].collisions:
+            raise RobotFileError(
+                f"{label}: foot link {foot!r} has no collision geometry, so nothing of the foot touches the ground; "
+                f"add a <collision> (a box under the sole) to it in the URDF, or name the links that have one in "
+                f"{side.label}'s feet"
+            )
     pose = {j: float(np.clip(0.0, *limits[j])) for j in joint_names}
     for leg in leg_keys:
         joints, _ = legs[leg]
@@ -394,16 +479,23 @@ def provisional_spec(urdf: str | Path, sidecar: str | Path | None = None, name: 
     )
     rotated = () if np.allclose(rotation, np.eye(3)) else tuple(float(v) for v in rotation.flatten())
     spec = spec.replace(trim_shins=kind == "quadruped", root_rotation=rotated)
+    if kind == "humanoid":  # the simulated geometry (meshes fitted to boxes), lowest point of any link on the ground
+        from frbench.robots.sim_urdf import sim_robot_file
+
+        sim_tree = parse_urdf(sim_robot_file(spec).path)
+        spec = spec.replace(nominal_height=standing_height(sim_tree, joint_names, ordered_pose, list(sim_tree.links)))
     return spec, side, {leg: tuple(legs[leg][0]) for leg in leg_keys}
 
 
 def spec_from_path(urdf: str | Path, sidecar: str | Path | None = None, name: str | None = None, measure: bool = True) -> RobotSpec:
     """The `RobotSpec` of any quadruped or humanoid URDF (module docstring); ``measure`` settles it for the height."""
     from frbench.robots.gains import derive_gains
+    from frbench.robots.humanoid_gains import derive_humanoid_gains
 
     spec, side, legs = provisional_spec(urdf, sidecar, name)
     kinematic_height = spec.nominal_height
-    derivation = derive_gains(spec, tuple(legs.values()), side.physics_dt, side.label)
+    derive = derive_humanoid_gains if spec.kind == "humanoid" else derive_gains
+    derivation = derive(spec, tuple(legs.values()), side.physics_dt, side.label)
     n = spec.n_joints
     gains = {}
     for key, derived in (("kp", derivation.kp), ("kd", derivation.kd)):

@@ -38,7 +38,7 @@ from frbench.robots.spec import RobotSpec
 from frbench.robots.urdf_tree import Collision, UrdfTree, merge_fixed_joints, parse_urdf, rotate_root, write_urdf
 
 #: Bump when the derivation changes (invalidates caches, changes checksums).
-SIM_URDF_VERSION = 2
+SIM_URDF_VERSION = 3
 #: Principal moments below this fraction of a link's largest count as zero (round-off).
 ROUND_OFF = 1e-9
 #: [kg·m²] moments below this count as zero whatever the link (a 1 g, 1 mm sphere has 4e-10).
@@ -105,9 +105,22 @@ def _check_inertial(tree: UrdfTree, feet=()) -> None:
             # a massless foot frame kept as a link for its contacts: the smallest mass both simulators accept
             link.mass, link.has_inertial = MASSLESS_FOOT_MASS, True
             link.inertia = np.eye(3) * 0.4 * link.mass * POINT_MASS_RADIUS**2
+        if not link.has_inertial and link.mass == 0 and tree.child_joints(link.name) and tree.parent_joint(link.name):
+            # a link with no <inertial> between two joints: the virtual link of a multi-axis joint (a hip
+            # as three revolute joints, human.urdf); MuJoCo refuses a massless moving body, so it gets the
+            # same negligible mass as a massless foot
+            link.mass, link.has_inertial = MASSLESS_FOOT_MASS, True
+            link.inertia = np.eye(3) * 0.4 * link.mass * POINT_MASS_RADIUS**2
+        parent = tree.parent_joint(link.name)
+        if link.mass == 0 and not link.has_inertial and parent is not None and parent.type != "fixed":
+            raise RobotFileError(
+                f"{label}: link {link.name!r} has no <inertial> and nothing below it, so joint {parent.name!r} moves "
+                "no mass (a simulator cannot integrate it); give the link an <inertial> or make the joint fixed in the URDF"
+            )
         if link.mass <= 0 or not np.isfinite(link.mass):
             raise RobotFileError(
-                f"{label}: link {link.name!r}{merged} has mass {link.mass:g} kg; every simulated link needs a positive mass"
+                f"{label}: link {link.name!r}{merged} has mass {link.mass:g} kg; every simulated link needs a positive mass: "
+                "set its <inertial><mass> in the URDF"
             )
         eig = np.linalg.eigvalsh(0.5 * (link.inertia + link.inertia.T))
         scale = max(float(np.max(np.abs(eig))), 1e-12)
@@ -179,8 +192,20 @@ def _apply_joint_limits(tree: UrdfTree, spec: RobotSpec) -> None:
         joint.lower, joint.upper, joint.effort = lower, upper, effort
 
 
+#: COLLADA ``<up_axis>`` → the rotation that turns the document's vertices z-up (URDF frames are z-up).
+_COLLADA_UP = {
+    "Z_UP": np.eye(3),
+    "Y_UP": np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]),  # +90° about x: y becomes z
+    "X_UP": np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]]),  # −90° about y: x becomes z
+}
+
+
 def _collada_vertices(root) -> np.ndarray:
-    """Vertices (n, 3) of a COLLADA document, placed by its scene's node matrices and unit."""
+    """Vertices (n, 3) of a COLLADA document, placed by its scene's node matrices, unit and up axis.
+
+    A document drawn y-up (``<up_axis>Y_UP``, iCub's collision meshes) is turned z-up, as the
+    COLLADA specification asks of a consumer; without it iCub's feet lie across the leg.
+    """
     local = lambda element: element.tag.rsplit("}", 1)[-1]  # noqa: E731
     geometries = {}
     for geometry in root.iter():
@@ -215,7 +240,8 @@ def _collada_vertices(root) -> np.ndarray:
         if local(scene) == "visual_scene":
             visit(scene, np.eye(4))
     vertices = np.vstack(placed) if placed else (np.vstack(list(geometries.values())) if geometries else np.zeros((0, 3)))
-    return vertices * unit
+    up = next(((e.text or "").strip().upper() for e in root.iter() if local(e) == "up_axis"), "Z_UP")
+    return (vertices @ _COLLADA_UP.get(up, np.eye(3)).T) * unit
 
 
 def _text_mesh_vertices(path: Path) -> np.ndarray | None:
@@ -241,6 +267,21 @@ def _text_mesh_vertices(path: Path) -> np.ndarray | None:
     return None
 
 
+def _binary_stl_vertices(path: Path) -> np.ndarray | None:
+    """Vertices (n, 3) of a binary STL file (80-byte header, triangle count, 50 bytes a triangle); None otherwise."""
+    try:
+        raw = Path(path).read_bytes()
+    except OSError:
+        return None
+    if len(raw) < 84:
+        return None
+    count = int(np.frombuffer(raw, dtype="<u4", count=1, offset=80)[0])
+    if count == 0 or len(raw) != 84 + 50 * count:
+        return None
+    rows = np.frombuffer(raw, dtype=np.uint8, offset=84).reshape(count, 50)[:, 12:48]
+    return np.ascontiguousarray(rows).view("<f4").reshape(-1, 3).astype(float)
+
+
 def _aabb_primitive(vertices: np.ndarray, collision: Collision, kind: str, label) -> Collision:
     """The primitive fitted to the axis-aligned bounding box of ``vertices`` (mesh frame, before scaling)."""
     if len(vertices) == 0:
@@ -258,15 +299,24 @@ def _aabb_primitive(vertices: np.ndarray, collision: Collision, kind: str, label
 
 
 def _fit_meshes(tree: UrdfTree, spec: RobotSpec) -> None:
-    """Replace every mesh collision by the primitive MuJoCo's compiler fits to it."""
+    """Replace every mesh collision by the primitive MuJoCo's compiler fits to it.
+
+    MuJoCo fits a box along the mesh's principal axes of inertia; a humanoid's sole must
+    lie flat on the ground, so a humanoid's foot meshes get the box along the mesh's own
+    axes instead (Talos' ankle mesh has principal axes 10° off its sole, and the fitted
+    box stood on an edge and tipped the robot over backwards).
+    """
     import mujoco
 
+    soles = set(spec.foot_links) if spec.kind == "humanoid" else set()
     jobs: list[tuple[str, int, Collision]] = []
     for link in tree.links.values():
         for index, collision in enumerate(link.collisions):
             if collision.kind != "mesh":
                 continue
             vertices = _text_mesh_vertices(collision.mesh)
+            if vertices is None and link.name in soles:
+                vertices = _binary_stl_vertices(collision.mesh)
             if vertices is None:
                 jobs.append((link.name, index, collision))
             else:
