@@ -34,6 +34,32 @@ def test_gains_scale_with_the_robot():
     assert heavy.physics_dt < 0.005  # the heavy robot's stiff calves need a smaller step
 
 
+def test_leg_reach_lifts_the_thigh_floor_and_caps_the_effort():
+    from frbench.robots.gains import FLOOR_ANGLE, GRAVITY, leg_reach, static_model
+
+    spec, _, legs = provisional_spec(example_robot_data("go2_description/urdf/go2.urdf"))
+    model, data, _, _ = static_model(spec)
+    reach = leg_reach(model, data, spec, tuple(legs.values()))
+    assert [reach[j] for j in legs["FL"]] == pytest.approx([0.5215, 0.426, 0.213], abs=1e-4)  # hip offset + 2 x 0.213 m
+    d = derive_gains(spec, tuple(legs.values()))
+    share = ground_truth.total_mass(spec) / 4 * GRAVITY  # [N]
+    # the thigh holds almost nothing at the standing pose (0.75 N·m): its floor is the foot's share at the leg's reach
+    assert abs(d.static_torque[1]) < 1.0 and d.kp[1] == pytest.approx(share * 0.426 / FLOOR_ANGLE, rel=1e-3)  # 33.6
+    # efforts 23.7 / 23.7 / 45.43 N·m capped at the foot's share of the weight at the whole leg's reach
+    assert spec.torque_limits[:3] == pytest.approx((23.7, 23.7, 45.43))
+    assert d.effort[:3] == pytest.approx((20.57,) * 3, abs=0.01) and d.as_dict()["effort"] == list(d.effort)
+    # Solo12's file says 1000 N·m for a 2.5 kg robot: 2.08 N·m; a sidecar's effort is taken as given
+    solo = spec_from_path(example_robot_data("solo_description/robots/solo12.urdf"), measure=False)
+    assert solo.torque_limits == pytest.approx((2.076,) * 12, abs=1e-3)
+
+
+def test_a_sidecar_effort_is_not_capped(tmp_path):
+    sidecar = tmp_path / "solo12.frbench.toml"
+    sidecar.write_text("effort = 3.0\n")
+    spec = spec_from_path(example_robot_data("solo_description/robots/solo12.urdf"), sidecar, measure=False)
+    assert spec.torque_limits == (3.0,) * 12
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("relative", ["solo_description/robots/solo12.urdf", "anymal_c_simple_description/urdf/anymal.urdf"])
 def test_derived_gains_stand_a_tiny_and_a_heavy_robot_in_both_simulators(relative):
@@ -151,7 +177,10 @@ def test_bolt_fails_the_check_saying_why_no_key_can_fix_it(capsys):
     assert "no sidecar key can fix it: its feet are at most 0.032 m across" in problem
     assert "give each foot link a sole (a box collision) at least 0.038 m long" in problem
     assert report.support["tilt_margin"] < 0.05
+    capsys.readouterr()
     assert main(["robot", "check", path]) == 1
+    out = capsys.readouterr().out
+    assert f"static support: CoM {report.support['com_height']:.3f} m up, -0.004 m inside the feet's support polygon" in out
 
 
 def test_bolt_with_soles_and_a_straight_pose_stands(tmp_path):

@@ -103,6 +103,10 @@ def run_check(args) -> int:
         print(f"    static torque [N·m] {_row(d['static_torque'])}")
         print(f"    inertia [kg·m²]     {_row(d['inertia'])}")
         print(f"    foot forces z [N]   {_row(d['foot_force_z'])}")
+    if report.support:
+        sup = report.support
+        print(f"  static support: CoM {sup['com_height']:.3f} m up, {sup['edge_distance']:.3f} m inside the feet's "
+              f"support polygon (tilt margin {sup['tilt_margin']:.3f} rad)")
     if report.kinematic_height:
         print(f"  standing height: kinematic {report.kinematic_height:.3f} m, nominal (measured) {report.standing and next(iter(report.standing.values()))['nominal_height']:.3f} m")
     for problem in report.problems:
