@@ -185,3 +185,56 @@ def test_go2_gets_up_from_its_back_in_mujoco():
     assert success.sum() >= 3, success
     # holding the default pose does not get a robot off its back
     assert _episode(ZeroPolicy(), spec, starts).sum() == 0
+
+
+# --- quadrupeds given by path: joint zeros read from the kinematics ----------------------------------------------
+
+
+def _by_path(source: str, relative: str):
+    from frbench.robots.infer import spec_from_path
+    from frbench.robots.paths import example_robot_data, pybullet_data_file
+
+    return spec_from_path((pybullet_data_file if source == "pb" else example_robot_data)(relative), measure=False)
+
+
+def test_canonical_frame_reads_the_joint_zeros_from_the_kinematics():
+    from frbench.policies.scripted import canonical_frame
+
+    for name in QUADRUPEDS:  # built-in legs hang straight down at zero: no offsets
+        assert not canonical_frame(get_robot(name))[1].any()
+    # Spirit40 folds its legs at zero (thigh pointing back, calf forward onto it); its thigh turns the other way
+    sign, offset = canonical_frame(_by_path("pb", "quadruped/spirit40.urdf"))
+    np.testing.assert_allclose(sign[:3], [1, -1, 1])
+    np.testing.assert_allclose(offset[:3], [0.0, np.pi / 2, -np.pi], atol=1e-4)
+    # Laikago's toe files bend the legs at zero
+    _, offset = canonical_frame(_by_path("pb", "laikago/laikago_toes.urdf"))
+    np.testing.assert_allclose(offset[:3], [0.0, 0.5989, -0.5112], atol=1e-4)
+    # ANYmal's knees bend forward (mirrored) and its shank is 15 degrees off the straight leg
+    sign, offset = canonical_frame(_by_path("erd", "anymal_c_simple_description/urdf/anymal.urdf"))
+    np.testing.assert_allclose(sign[:3], [1, -1, -1])
+    assert offset[1] == 0.0 and offset[2] == pytest.approx(0.2548, abs=1e-3)
+
+
+@pytest.mark.parametrize("source,relative", [("pb", "quadruped/spirit40.urdf"), ("pb", "quadruped/vision60.urdf"),
+                                             ("pb", "laikago/laikago_toes.urdf")])
+def test_poses_of_robots_with_offset_zeros_are_the_canonical_ones(source, relative):
+    """Whatever the file's joint zeros, the default pose reads as thighs swung back and knees bent back, and the
+    folded pose as a deep fold; targets map back to the robot's own angles exactly."""
+    spec = _by_path(source, relative)
+    policy = ScriptedPolicy()
+    policy.reset(spec, 1)
+    assert (policy.default[policy.thigh] > 0.6).all() and (policy.default[policy.thigh] < 1.0).all()
+    assert (policy.default[policy.calf] < -1.5).all() and (policy.default[policy.calf] > -1.8).all()
+    assert (policy.fold[policy.calf] < -2.5).all()
+    np.testing.assert_allclose(policy.to_joints(policy.default), spec.default_pose, atol=1e-9)
+    q = np.random.default_rng(0).uniform(spec.joint_lower, spec.joint_upper)
+    np.testing.assert_allclose(policy.to_joints(policy.to_canonical(q)), q, atol=1e-12)
+
+
+@pytest.mark.parametrize("source,relative", [("pb", "quadruped/spirit40.urdf"), ("erd", "solo_description/robots/solo12.urdf")])
+def test_robots_given_by_path_get_up_from_their_backs_in_mujoco(source, relative):
+    """Spirit40 (legs folded at zero angles: 0 of 8 before its joint zeros were read) and Solo12 (its file's
+    1000 N·m efforts on 2.5 kg diverged in both simulators before the effort cap)."""
+    spec = _by_path(source, relative)
+    success = _episode(ScriptedPolicy(), spec, _starts(spec, "supine", 4))
+    assert success.sum() >= 3, success

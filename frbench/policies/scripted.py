@@ -5,10 +5,14 @@ gravity g (body frame; (0, 0, -1) upright, (0, 0, +1) on the back), the
 measured joint angles (only to start from where the legs are) and the control
 steps spent in the current phase. Every pose is computed from the robot spec
 (joint limits, default pose; canonical order FL, FR, RL, RR x hip, thigh, calf),
-written in the Unitree sign convention; `canonical_signs` maps any robot's
-joint directions and knee direction onto it, so the same code drives Go2, Go1,
-Aliengo, Spot-like, Lite3-like and quadrupeds given by path (Solo, ANYmal, ...). The roll direction d = +1 rolls the left side down (g_y grows),
-d = -1 the right side. Phases:
+written in canonical leg angles: the Unitree sign convention with legs that
+hang straight down at zero. `canonical_frame` maps any robot's joint
+directions, joint zeros (the segment directions read from its kinematics) and
+knee direction onto them, so the same code drives Go2, Go1, Aliengo,
+Spot-like, Lite3-like and quadrupeds given by path: Solo and ANYmal (knees
+forward), Spirit and Vision60 (legs folded at zero angles), Laikago's toe files
+(legs bent at zero). The roll direction d = +1 rolls the left side down (g_y
+grows), d = -1 the right side. Phases:
 
 ``FOLD``    fold the legs against the body (calves at their folded limit, feet
             under the hips); then choose from g: belly down -> ``BELLY``;
@@ -86,34 +90,68 @@ BELLY_SPLAY = 0.5
 LOWER_THIGH_BACK = 0.8
 
 
-def canonical_signs(spec: RobotSpec) -> np.ndarray:
-    """Per joint ±1 mapping the robot's angles to the Unitree convention the poses are written in, (n_joints,).
+#: Joint-zero offsets [rad] below this count as zero (a leg that hangs straight down at zero angles).
+OFFSET_TOLERANCE = 1e-6
 
-    Canonical: +hip moves the foot towards +y (rotation about the body's +x),
-    thigh and calf rotate about +y, and the standing calf angle is negative
-    (knee bent backwards). Axes are read from the simulation URDF at the zero
-    pose; a leg whose standing knee bends the other way (Solo, ANYmal) is
-    mirrored front to back (thigh and calf both flipped), which leaves the
-    fold-roll-stand motion unchanged.
+
+def _sagittal_angle(v: np.ndarray) -> float:
+    """Angle [rad] of ``v`` from straight down in the body's x-z plane, positive towards -x (backwards)."""
+    return float(np.arctan2(-v[0], -v[2]))
+
+
+def _wrap(angle: float) -> float:
+    """``angle`` [rad] wrapped into [-π, π)."""
+    return float((angle + np.pi) % (2.0 * np.pi) - np.pi)
+
+
+def canonical_frame(spec: RobotSpec) -> tuple[np.ndarray, np.ndarray]:
+    """Per joint ±1 sign and offset [rad] mapping the robot's angles to the canonical leg angles the poses
+    are written in: ``canonical = sign * q + offset``, each (n_joints,).
+
+    Canonical (the Unitree convention with legs that hang straight down at zero):
+    +hip moves the foot towards +y (rotation about the body's +x); the thigh
+    angle is the direction of the hip-to-knee segment from straight down and the
+    calf angle that of the knee-to-foot segment relative to the thigh, both
+    about +y (positive swings the segment backwards, towards -x), so the
+    standing calf angle is negative (knee bent backwards). Axis directions are
+    read from the simulation URDF; the offsets are the segment directions at
+    the default pose (hips at zero) minus the joint angles there, so a file
+    whose zero pose is not a straight leg (Spirit and Vision60 fold their legs
+    at zero, Laikago's toe files bend them) gets the same poses as one whose is.
+    Offsets below `OFFSET_TOLERANCE` are zero. A leg whose standing knee bends
+    the other way (Solo, ANYmal) is mirrored front to back (thigh and calf both
+    flipped), which leaves the fold-roll-stand motion unchanged.
     """
     from frbench.robots.kinematics import link_poses
     from frbench.robots.sim_urdf import sim_robot_file
     from frbench.robots.urdf_tree import parse_urdf
 
     tree = parse_urdf(sim_robot_file(spec).path)
-    poses = link_poses(tree, {})
-    sign = np.ones(spec.n_joints)
     default = np.asarray(spec.default_pose, dtype=float)
+    zero = link_poses(tree, {})
+    hips_zero = dict(zip(spec.joint_names, default))
+    hips_zero.update({spec.joint_names[3 * k]: 0.0 for k in range(len(QUADRUPED_LEGS))})
+    standing = link_poses(tree, hips_zero)
+    sign, offset = np.ones(spec.n_joints), np.zeros(spec.n_joints)
     for k in range(len(QUADRUPED_LEGS)):
         hip, thigh, calf = 3 * k, 3 * k + 1, 3 * k + 2
         axes = []
         for j, component in ((hip, 0), (thigh, 1), (calf, 1)):
             joint = tree.joints[spec.joint_names[j]]
-            axis = poses[joint.parent][:3, :3] @ joint.origin[:3, :3] @ (joint.axis / np.linalg.norm(joint.axis))
+            axis = zero[joint.parent][:3, :3] @ joint.origin[:3, :3] @ (joint.axis / np.linalg.norm(joint.axis))
             axes.append(1.0 if axis[component] >= 0 else -1.0)
-        mirror = 1.0 if axes[2] * default[calf] <= 0 else -1.0
+        thigh_joint, calf_joint = tree.joints[spec.joint_names[thigh]], tree.joints[spec.joint_names[calf]]
+        pivot = (standing[thigh_joint.parent] @ thigh_joint.origin)[:3, 3]
+        knee = (standing[calf_joint.parent] @ calf_joint.origin)[:3, 3]
+        foot = standing[spec.foot_links[k]][:3, 3]
+        thigh_angle = _sagittal_angle(knee - pivot)
+        calf_angle = _wrap(_sagittal_angle(foot - knee) - thigh_angle)
+        offsets = (thigh_angle - axes[1] * default[thigh], calf_angle - axes[2] * default[calf])
+        offsets = tuple(0.0 if abs(o) < OFFSET_TOLERANCE else o for o in offsets)
+        mirror = 1.0 if calf_angle <= 0 else -1.0
         sign[hip], sign[thigh], sign[calf] = axes[0], axes[1] * mirror, axes[2] * mirror
-    return sign
+        offset[thigh], offset[calf] = mirror * offsets[0], mirror * offsets[1]
+    return sign, offset
 
 
 def _smoothstep(x: np.ndarray) -> np.ndarray:
@@ -133,11 +171,11 @@ class ScriptedPolicy:
 
     # ------------------------------------------------------------------ poses
     def _build_poses(self, spec: RobotSpec) -> None:
-        """Every pose from the spec's limits and default pose (all (n_joints,) arrays), in canonical signs."""
-        self.sign = canonical_signs(spec)
-        default = self.sign * np.asarray(spec.default_pose, dtype=float)
-        lower = self.sign * np.asarray(spec.joint_lower, dtype=float)
-        upper = self.sign * np.asarray(spec.joint_upper, dtype=float)
+        """Every pose from the spec's limits and default pose (all (n_joints,) arrays), in canonical leg angles."""
+        self.sign, self.offset = canonical_frame(spec)
+        default = self.to_canonical(np.asarray(spec.default_pose, dtype=float))
+        lower = self.to_canonical(np.asarray(spec.joint_lower, dtype=float))
+        upper = self.to_canonical(np.asarray(spec.joint_upper, dtype=float))
         self.default = default
         self.lo = np.minimum(lower, upper) + LIMIT_MARGIN
         self.hi = np.maximum(lower, upper) - LIMIT_MARGIN
@@ -165,6 +203,14 @@ class ScriptedPolicy:
         # A straightened leg pointing out of the back: thigh ~ pi - calf / 2, as far as the limit allows.
         self.push_calf = np.minimum(self.hi[self.calf], -STRAIGHT_KNEE)  # the straightest knee, never bent backwards
         self.push_thigh = np.minimum(self.hi[self.thigh], np.pi - self.push_calf / 2.0)
+
+    def to_canonical(self, q: np.ndarray) -> np.ndarray:
+        """The robot's joint angles [rad] (..., n_joints) as canonical leg angles (see `canonical_frame`)."""
+        return self.sign * q + self.offset if self.offset.any() else self.sign * q
+
+    def to_joints(self, canonical: np.ndarray) -> np.ndarray:
+        """Canonical leg angles [rad] (..., n_joints) as the robot's joint angles (inverse of `to_canonical`)."""
+        return self.sign * (canonical - self.offset) if self.offset.any() else self.sign * canonical
 
     def topple_pose(self, nose_down: bool) -> np.ndarray:
         """Pose tipping over a robot standing on its nose (or tail): the legs at that end straighten and
@@ -216,7 +262,7 @@ class ScriptedPolicy:
         """Joint targets (N, n_joints) [rad]."""
         g = np.asarray(obs["projected_gravity"], dtype=float)
         if self.target is None:  # first step: interpolate from where the joints are
-            self.target = self._clip(self.sign * np.asarray(obs["joint_pos"], dtype=float))
+            self.target = self._clip(self.to_canonical(np.asarray(obs["joint_pos"], dtype=float)))
             self.start = self.target.copy()
             self.goal[g[:, 2] < TIPPED_GZ] = self.belly
             self._prev_g = g.copy()
@@ -232,7 +278,7 @@ class ScriptedPolicy:
         end = np.where(calf, CALF_WINDOW[self.phase, 1:], OTHER_WINDOW[self.phase, 1:])
         w = _smoothstep((progress - begin) / (end - begin))
         self.target = self._clip(self.start + w * (self.goal - self.start))
-        return self.sign * self.target
+        return self.to_joints(self.target)
 
     # ------------------------------------------------------------ the machine
     def _enter(self, i: int, phase: int, goal: np.ndarray) -> None:

@@ -15,11 +15,26 @@ standing pose with the feet on flat ground):
    ``FLOOR_ANGLE`` = 0.5 rad: its own subtree's weight at the lever of the
    subtree's CoM, and, on a chain to a foot, the foot's share of the weight at
    the lever of the whole-body CoM (an inverted pendulum needs ``Kp > m g h``;
-   this gives twice that). Legs get the same gain per position in the leg
-   (hip, thigh, calf, ...), the largest over the legs.
+   this gives twice that). A quadruped's leg joint takes the larger of that
+   lever and the leg's *reach* below the joint (`leg_reach`: the chain's length
+   from the joint to the foot): pushing up from a crouch, or with a foot that
+   slid, a foot can meet the ground anywhere within reach, and at the standing
+   pose, feet under the hips, the thigh's static torque is almost zero (Go2's
+   file: 0.7 N·m, Kp 19 N·m/rad, too weak to lift the nose off the ground when
+   standing up; 34 N·m/rad with the reach). Legs get the same gain per position
+   in the leg (hip, thigh, calf, ...), the largest over the legs.
 3. **Effort.** A joint whose static torque exceeds ``EFFORT_FRACTION`` of its
    effort limit cannot hold the robot: refused, naming the sidecar's
-   ``effort`` (or ``default_pose``) key.
+   ``effort`` (or ``default_pose``) key. A quadruped's leg joints are then
+   *capped* (``Derivation.effort``, the robot's torque limits unless the
+   sidecar sets ``effort``) at the torque that holds a foot's share of the
+   weight at the leg's full reach, ``m g / n_feet * reach`` (the longest
+   leg's, from its first joint), never below ``|tau| / EFFORT_FRACTION``:
+   files give efforts far above what the robot can use (Solo12 1000 N·m on
+   2.5 kg, pybullet_data's Laikago 100 N·m on 26 kg), and with them a leg
+   caught under the body or against another leg stores its saturated torque
+   and, when it frees, throws the robot off the ground (Solo12 diverged in
+   both simulators; with the cap it recovers).
 4. **Damping and step.** Explicit PD on a joint of effective inertia ``I``
    (the diagonal of the joint-space mass matrix, ``crba``) integrated with a
    semi-implicit Euler step ``dt`` is stable while ``a = Kd dt / I < 2`` and
@@ -63,6 +78,8 @@ class Derivation:
 
     Attributes:
         kp [N·m/rad], kd [N·m·s/rad], physics_dt [s].
+        effort: the torque limits the robot is simulated with [N·m] (quadrupeds: the file's, capped as in
+            step 3 of the module docstring); empty where the derivation leaves them as they are.
         static_torque: tau holding the standing pose [N·m].
         inertia: joint-space inertia (mass-matrix diagonal) [kg·m²].
         foot_force_z: vertical force per foot [N].
@@ -80,17 +97,21 @@ class Derivation:
     stability_a: tuple[float, ...]
     mode_b: float = 0.0
     mode_a: float = 0.0
+    effort: tuple[float, ...] = ()
 
     def as_dict(self) -> dict:
         """JSON-ready, rounded."""
         r = lambda v: [float(f"{x:.4g}") for x in v]  # noqa: E731
-        return {
+        out = {
             "method": "frbench.robots.gains (static torques, sag 0.04 rad, explicit-PD stability)",
             "kp": r(self.kp), "kd": r(self.kd), "physics_dt": self.physics_dt,
             "static_torque": r(self.static_torque), "inertia": r(self.inertia), "foot_force_z": r(self.foot_force_z),
             "stability_b": r(self.stability_b), "stability_a": r(self.stability_a),
             "mode_b": float(f"{self.mode_b:.4g}"), "mode_a": float(f"{self.mode_a:.4g}"),
         }
+        if self.effort:
+            out["effort"] = r(self.effort)
+        return out
 
 
 def _leg_roles(spec: RobotSpec, legs: tuple[tuple[str, ...], ...]) -> list[list[int]]:
@@ -165,12 +186,14 @@ def derive_gains(spec: RobotSpec, legs: tuple[tuple[str, ...], ...], physics_dt:
         while jid > 1:
             support.add(jid)
             jid = model.parents[jid]
+    reach = {} if humanoid else leg_reach(model, data, spec, legs)
     floor = np.zeros(spec.n_joints)
     for i, name in enumerate(spec.joint_names):
         jid = model.getJointId(name)
         pos = np.array(data.oMi[jid].translation)
         limb = data.mass[jid] * GRAVITY * np.linalg.norm(np.array(data.com[jid]) - pos)
-        balance = share * GRAVITY * np.linalg.norm(com - pos) if jid in support else 0.0
+        lever = max(np.linalg.norm(com - pos), reach.get(name, 0.0))
+        balance = share * GRAVITY * lever if jid in support else 0.0
         floor[i] = max(limb, balance) / FLOOR_ANGLE
 
     for i, name in enumerate(spec.joint_names):
@@ -180,6 +203,7 @@ def derive_gains(spec: RobotSpec, legs: tuple[tuple[str, ...], ...], physics_dt:
                 f"{EFFORT_FRACTION:.0%} of its effort limit {spec.torque_limits[i]:.3g} N·m; set effort.{name} in "
                 f"{sidecar_label} (or a less crouched [default_pose])"
             )
+    effort = () if humanoid else capped_effort(spec, legs, tau, share, reach)
     kp = np.maximum(tau / SAG, floor)
     for group in _leg_roles(spec, legs):
         kp[group] = kp[group].max()
@@ -207,7 +231,7 @@ def derive_gains(spec: RobotSpec, legs: tuple[tuple[str, ...], ...], physics_dt:
                 kp=tuple(float(f"{v:.4g}") for v in kp), kd=tuple(float(f"{v:.4g}") for v in kd), physics_dt=float(dt),
                 static_torque=tuple(tau_all[v_index].tolist()), inertia=tuple(inertia.tolist()),
                 foot_force_z=tuple(foot_z.tolist()), stability_b=tuple(b.tolist()), stability_a=tuple(a.tolist()),
-                mode_b=float(b_mode), mode_a=float(a_mode),
+                mode_b=float(b_mode), mode_a=float(a_mode), effort=effort,
             )
     b = kp * PHYSICS_STEPS[-1] ** 2 / inertia
     worst = int(np.argmax(b))
@@ -216,6 +240,39 @@ def derive_gains(spec: RobotSpec, legs: tuple[tuple[str, ...], ...], physics_dt:
         f"Kp dt²/I = {rate_kp * PHYSICS_STEPS[-1] ** 2:.3g} > {B_MAX:g} (lightest joint {spec.joint_names[worst]!r}, "
         f"{inertia[worst]:.3g} kg·m², Kp {kp[worst]:.3g} N·m/rad); set kp, kd and physics_dt in {sidecar_label}"
     )
+
+
+def leg_reach(model, data, spec: RobotSpec, legs: tuple[tuple[str, ...], ...]) -> dict[str, float]:
+    """Per leg joint, its reach [m]: the length of the chain below it to its foot, the sum of the distances
+    between consecutive joint origins and from the leg's last joint to the foot frame (``data`` after
+    forward kinematics and frame placements at any pose; legs in the order of ``spec.foot_links``)."""
+    reach = {}
+    for joints, foot in zip(legs, spec.foot_links):
+        points = [np.array(data.oMi[model.getJointId(name)].translation) for name in joints]
+        points.append(np.array(data.oMf[model.getFrameId(foot)].translation))
+        segments = np.linalg.norm(np.diff(np.array(points), axis=0), axis=1)
+        for k, name in enumerate(joints):
+            reach[name] = float(segments[k:].sum())
+    return reach
+
+
+def capped_effort(spec: RobotSpec, legs: tuple[tuple[str, ...], ...], tau: np.ndarray, share: float,
+                  reach: dict[str, float]) -> tuple[float, ...]:
+    """Torque limits [N·m] with the leg joints capped (step 3 of the module docstring).
+
+    Args:
+        tau: |static torque| per joint at the standing pose [N·m].
+        share: a foot's share of the weight, total mass / number of feet [kg].
+        reach: `leg_reach` per leg joint [m].
+    """
+    longest = max(reach[leg[0]] for leg in legs)
+    cap = share * GRAVITY * longest
+    leg_joints = {name for leg in legs for name in leg}
+    effort = np.asarray(spec.torque_limits, dtype=float).copy()
+    for i, name in enumerate(spec.joint_names):
+        if name in leg_joints:
+            effort[i] = min(effort[i], float(f"{max(cap, tau[i] / EFFORT_FRACTION):.4g}"))
+    return tuple(effort.tolist())
 
 
 def _mode_rate(M: np.ndarray, v_index: np.ndarray, gains: np.ndarray) -> float:

@@ -502,6 +502,8 @@ def spec_from_path(urdf: str | Path, sidecar: str | Path | None = None, name: st
         value = getattr(side, key)
         gains[key] = tuple(value[j] for j in spec.joint_names) if isinstance(value, dict) else ((float(value),) * n if value is not None else derived)
     spec = spec.replace(kp=gains["kp"], kd=gains["kd"], physics_dt=side.physics_dt or derivation.physics_dt)
+    if derivation.effort and side.effort is None:  # leg torques capped at what the robot can use (gains, step 3)
+        spec = spec.replace(torque_limits=derivation.effort)
     extra = {
         "legs": json.dumps(legs),
         "derivation": json.dumps(derivation.as_dict()),
