@@ -311,3 +311,36 @@ def test_morphology_variants_run_as_if_built_alone():
         np.testing.assert_array_equal(alone.state().q[0], together.q[i])
         np.testing.assert_array_equal(alone.state().base_pos[0], together.base_pos[i])
         alone.close()
+
+
+@pytest.mark.parametrize("variants", [False, True])
+def test_mujoco_whole_body_com_is_the_batch_position_stage_bit_for_bit(variants):
+    """The robot-only batch (`frbench.backends.mujoco_com`) gives the simulation batch's own ``subtree_com`` at the
+    current state, with morphology variants, their payloads and frictions, or payloads set per episode."""
+    import mujoco
+
+    from frbench.terrains import make_terrain
+    from frbench.training.randomization import morphology_specs, sample_morphologies
+
+    n = 4
+    if variants:
+        specs = morphology_specs(sample_morphologies(2, np.random.default_rng(5)))
+        variant = (specs, np.array([1, 0, 1, 0]), np.array([0.7, 1.2]), np.array([1.5, -0.5]))
+        sim = make_backend("mujoco", specs[0], n, terrain=make_terrain("stairs", 3, 0), variants=variant)
+        spec = specs[0]
+    else:
+        spec = get_robot("go2")
+        sim = make_backend("mujoco", spec, n, terrain=make_terrain("rough", 4, 0))
+        params = PhysicsParams.nominal(spec, n)
+        params.payload = np.array([0.0, 2.0, -1.0, 0.5])
+        sim.set_params(params)
+    rng = np.random.default_rng(6)
+    sim.reset(np.arange(n), RobotState.at_rest(np.tile([0.0, 0.0, 0.6], (n, 1)), rng.normal(size=(n, 4)),
+                                               spec.default_pose + rng.uniform(-0.4, 0.4, (n, 12))))
+    subtree_com = sim.batch.bind("subtree_com")
+    for _ in range(4):
+        sim.step(np.tile(spec.default_pose, (n, 1)))
+        com = sim.whole_body_com()
+        sim.batch.forward(stage=mujoco.mjtStage.mjSTAGE_POS)  # the batch's own position stage at this state
+        assert com.tobytes() == subtree_com[:, sim._root_body].tobytes()
+    sim.close()

@@ -8,13 +8,14 @@ frame, so the conversion here is only index bookkeeping.
 The actuation is MuJoCo's own (native PD and motor-friction actuators, see
 `frbench.backends.mujoco_model`), so one control period is ONE
 ``Batch.step(nstep=substeps)`` call: one dispatch to the thread pool instead
-of one per physics step. Every per-simulation parameter (gains, strength,
+of one per physics step, and nothing more (the contact forces and actuator
+torques read afterwards are those of the last physics step, as the conventions
+say). Every per-simulation parameter (gains, strength,
 motor friction, terrain friction, payload, and the morphology variants' masses,
 inertias, dimensions) is an expanded model field of one batch
-(``Batch.expand``), so nothing is recompiled when they change. Each call also
-computes the position and velocity stages at the new state (free for a
-persistent batch), so derived fields such as ``subtree_com`` describe the state
-the caller reads.
+(``Batch.expand``), so nothing is recompiled when they change. The whole-body
+centre of mass at the current state comes from a second, robot-only batch
+(`frbench.backends.mujoco_com`), built the first time it is asked for.
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ from frbench.backends.base import (
     summarize_contacts,
 )
 from frbench.backends.contact_layout import as_slice
+from frbench.backends.mujoco_com import CentreOfMass
 from frbench.backends.mujoco_model import build_model, joint_addresses
 from frbench.robots.sim_urdf import sim_robot_file
 from frbench.robots.spec import RobotSpec
@@ -101,7 +103,6 @@ class MujocoBackend:
         self._ctrl = self.batch.bind("ctrl")
         self._cfrc_ext = self.batch.bind("cfrc_ext")
         self._qfrc_actuator = self.batch.bind("qfrc_actuator")
-        self._subtree_com = self.batch.bind("subtree_com")
         self._xfrc_applied = self.batch.bind("xfrc_applied")
         self._gain = self.batch.expand("actuator_gainprm")
         self._bias = self.batch.expand("actuator_biasprm")
@@ -113,6 +114,9 @@ class MujocoBackend:
         self._limits = np.asarray(spec.torque_limits)
         self._tau = np.zeros((self.num_envs, spec.n_joints))
         self.diverged = np.zeros(self.num_envs, dtype=bool)
+        self._com_of: CentreOfMass | None = None  # built by the first `whole_body_com`
+        self._com: np.ndarray | None = None  # the CoM of the current state, once computed
+        self._com_fields_changed = True  # the batch's kinematic fields changed since they were mirrored
         self.set_params(PhysicsParams.nominal(spec, self.num_envs))
 
     # ------------------------------------------------------------------ params
@@ -143,6 +147,7 @@ class MujocoBackend:
         friction[:, self._terrain_geoms, 0] = params.friction[:, None]
         mass[:, self._root_body] = self._base_mass + payload
         self.batch.set_const()
+        self._com_fields_changed, self._com = True, None
         self.batch.forward(stage=mujoco.mjtStage.mjSTAGE_VEL)  # the stages the next step continues from
 
     def set_base_force(self, force: np.ndarray) -> None:
@@ -173,6 +178,7 @@ class MujocoBackend:
         self._qvel[ids] = qvel
         self._ctrl[ids] = 0.0
         self._tau[ids] = 0.0
+        self._com = None
         warnings_before = self.batch.warning[ids][:, _INSTABILITY, 0].sum(axis=1)
         self.batch.forward(ids)
         bad = self.batch.warning[ids][:, _INSTABILITY, 0].sum(axis=1) > warnings_before
@@ -186,8 +192,9 @@ class MujocoBackend:
             return
         self._ctrl[:, : self.spec.n_joints] = targets
         warnings_before = self.batch.warning[:, _INSTABILITY, 0].sum(axis=1)
+        self._com = None
         try:
-            self.batch.step(ids, nstep=self.substeps, stage=mujoco.mjtStage.mjSTAGE_VEL)
+            self.batch.step(ids, nstep=self.substeps)
         except mjbatch.SimulationError as exc:
             self.diverged[np.asarray(exc.ids)] = True
         self.diverged |= self.batch.warning[:, _INSTABILITY, 0].sum(axis=1) > warnings_before
@@ -219,8 +226,20 @@ class MujocoBackend:
         return state
 
     def whole_body_com(self) -> np.ndarray:
-        """Whole-body CoM in the world [m] (N, 3): the root's ``subtree_com``, current after every call."""
-        return self._subtree_com[:, self._root_body].copy()
+        """Whole-body CoM in the world [m] (N, 3) at the current state: the root's ``subtree_com`` as the batch's
+        position stage would compute it (`frbench.backends.mujoco_com`)."""
+        if self._com is None:
+            if self._com_of is None:
+                from frbench.terrains import make_terrain
+
+                robot_alone = build_model(self.spec, make_terrain("flat", 1, 0))
+                self._com_of = CentreOfMass(self.model, robot_alone, self.num_envs, self._root_body,
+                                            self.batch.nthread)
+            if self._com_fields_changed:
+                self._com_of.mirror(self.batch)
+                self._com_fields_changed = False
+            self._com = self._com_of(self._qpos)
+        return self._com.copy()
 
     def mass_properties(self) -> tuple[np.ndarray, np.ndarray]:
         """(total robot mass [kg] (N,), whole-body CoM in the world [m] (N, 3)) as MuJoCo holds them."""
