@@ -1,13 +1,12 @@
-"""Scripted (and FR-Net) evaluation of every quadruped of the robot-plug table, through the CLI.
+"""Evaluation of every quadruped of the robot-plug table by one or more policies, through the CLI.
 
-For each file it runs, one after the other::
+For each file and policy it runs, one after the other::
 
-    frbench evaluate --policy scripted --robots PATH --terrains flat --levels 1 --seeds 0 --episodes 8
-    frbench evaluate --policy frnet    --robots PATH --terrains flat --levels 1 --seeds 0 --episodes 1 --backends mujoco
+    frbench evaluate --policy POLICY --robots PATH --terrains flat --levels 1 --seeds 0 --episodes 8
 
-and prints the success rate per simulator (and whether FR-Net ran).
+and prints the successes per simulator (or the error).
 
-    PYTHONPATH=$PWD python tools/robot_plug_evaluate.py [--only SUBSTRING] [--frnet]
+    PYTHONPATH=$PWD python tools/robot_plug_evaluate.py [--only SUBSTRING] [--policies scripted,frnet]
 """
 
 from __future__ import annotations
@@ -46,7 +45,8 @@ def evaluate(path: str, policy: str, episodes: int, backends: str = "mujoco,pybu
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", default="")
-    parser.add_argument("--frnet", action="store_true", help="also run FR-Net for one episode")
+    parser.add_argument("--policies", default="scripted", help="comma-separated policies (default: scripted)")
+    parser.add_argument("--episodes", type=int, default=8, help="episodes per simulator (default: 8)")
     parser.add_argument("--skip", default="pb:laikago/laikago.urdf,pb:mini_cheetah/mini_cheetah.urdf",
                         help="files left out (refused without a sidecar)")
     args = parser.parse_args()
@@ -54,9 +54,9 @@ def main() -> int:
     for entry in QUADRUPEDS:
         if args.only not in entry or entry in skip:
             continue
-        row = {"file": entry, "scripted": evaluate(resolve(entry), "scripted", 8)}
-        if args.frnet:
-            row["frnet"] = evaluate(resolve(entry), "frnet", 1, "mujoco")
+        row = {"file": entry}
+        for policy in args.policies.split(","):
+            row[policy] = evaluate(resolve(entry), policy, args.episodes)
         print(json.dumps(row), flush=True)
     return 0
 
