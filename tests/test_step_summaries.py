@@ -144,3 +144,110 @@ def test_start_geometry_equals_the_kinematics_module_bit_for_bit(robot):
         reach = max(np.linalg.norm(pose[:2, 3]) for pose in world.values()) + 0.15
         got = lowest_offset_and_reach(spec, quat, q)
         assert _same_bits(np.float64(got[0]), np.float64(lowest)) and _same_bits(np.float64(got[1]), np.float64(reach))
+
+
+class _SequentialSuccess:
+    """The per-step success test `SuccessTracker.update_steps` replaced (one step at a time)."""
+
+    def __init__(self, tracker):
+        self.t = tracker
+        self.success = tracker.success.copy()
+        self.time_to_recover = tracker.time_to_recover.copy()
+        self.streak, self.step = tracker._streak.copy(), tracker._step
+
+    def update(self, s, alive):
+        from frbench.tasks.success import HOLD_STEPS, MAX_DISPLACEMENT
+        from frbench.tasks.protocol import CONTROL_DT
+
+        self.step += 1
+        up = self.t.upright(s) & alive
+        self.streak = np.where(up, self.streak + 1, 0)
+        done = (self.streak >= HOLD_STEPS) & ~self.success & (s.displacement < MAX_DISPLACEMENT)
+        self.time_to_recover[done] = (self.step - HOLD_STEPS + 1) * CONTROL_DT
+        self.success |= done
+        self.success &= alive
+
+
+def _random_signals(rng, k, n):
+    from frbench.tasks.success import StepSignals
+
+    upright = rng.random((k, n)) < 0.9  # long upright runs, broken now and then
+    return StepSignals(
+        gravity_z=np.where(upright, -0.99, -0.2), height=np.full((k, n), 0.3),
+        body_contact=rng.random((k, n)) < 0.02, displacement=rng.uniform(0.0, 1.3, (k, n)),
+        surface_drop=np.where(rng.random((k, n)) < 0.02, 0.5, 0.0),
+    )
+
+
+@pytest.mark.parametrize("chunks", [[1] * 90, [90], [7, 50, 1, 32], [25, 25, 40]])
+def test_success_steps_at_once_equal_one_step_at_a_time(chunks):
+    from frbench.tasks.success import StepSignals, SuccessTracker
+
+    rng = np.random.default_rng(7)
+    k, n = sum(chunks), 24
+    signals = _random_signals(rng, k, n)
+    alive = np.ones((k, n), dtype=bool)
+    alive[60:, 3] = False  # diverged late
+    alive[rng.integers(0, k, size=4), rng.integers(0, n, size=4)] = False  # and single dead steps
+    tracker = SuccessTracker(n, "quadruped", 0.3)
+    reference = _SequentialSuccess(tracker)
+    start = 0
+    for size in chunks:
+        part = StepSignals(*(getattr(signals, f)[start:start + size] for f in
+                             ("gravity_z", "height", "body_contact", "displacement", "surface_drop")))
+        tracker.update_steps(part, alive[start:start + size])
+        for t in range(start, start + size):
+            reference.update(StepSignals(*(getattr(signals, f)[t] for f in
+                                           ("gravity_z", "height", "body_contact", "displacement", "surface_drop"))),
+                             alive[t])
+        start += size
+        assert np.array_equal(tracker.success, reference.success)
+        assert _same_bits(tracker.time_to_recover, reference.time_to_recover)
+        assert np.array_equal(tracker._streak, reference.streak) and tracker._step == reference.step
+    assert 0 < tracker.success.sum() < n and not tracker.success[3]
+
+
+def _sequential_metrics(n, j, steps):
+    """The per-step metrics `EpisodeMetrics.update_steps` replaced."""
+    from frbench.tasks.protocol import CONTROL_DT
+
+    energy, peak, most, final, roll = (np.zeros(n) for _ in range(5))
+    rolled, diverged_any, second, count, prev, prev2 = np.zeros(n, bool), np.zeros(n, bool), np.zeros(n), 0, None, None
+    for q, qd, tau, ang, force, disp, diverged in steps:
+        ok = ~diverged
+        energy += np.where(ok, np.abs(tau * qd).sum(axis=1) * CONTROL_DT, 0.0)
+        peak = np.maximum(peak, np.where(ok, force, 0.0))
+        most = np.maximum(most, np.where(ok, disp, 0.0))
+        final = np.where(ok, disp, final)
+        roll += np.where(ok, ang * CONTROL_DT, 0.0)
+        rolled |= np.abs(roll) > np.pi
+        diverged_any |= diverged
+        if prev2 is not None:
+            second += np.where(ok, np.abs(q - 2 * prev + prev2).mean(axis=1), 0.0)
+            count += 1
+        prev2, prev = prev, q.copy()
+    return dict(energy=energy, peak_contact_force=peak, max_displacement=most, final_displacement=final, roll=roll,
+                rolled_over=rolled, diverged=diverged_any, smoothness=second / max(count, 1))
+
+
+@pytest.mark.parametrize("chunks", [[1] * 40, [40], [1, 1, 30, 8], [2, 38]])
+def test_metrics_steps_at_once_equal_one_step_at_a_time(chunks):
+    from frbench.tasks.success import EpisodeMetrics
+
+    rng = np.random.default_rng(8)
+    n, j = 10, 12
+    steps = []
+    for t in range(sum(chunks)):
+        diverged = np.zeros(n, dtype=bool)
+        diverged[2] = t >= 25
+        q, qd, tau = (rng.normal(size=(n, j)) for _ in range(3))
+        steps.append((q, qd, tau, rng.normal(scale=40.0, size=n), rng.uniform(0, 300, n), rng.uniform(0, 2, n),
+                      diverged))
+    steps[30][2][4, 0] = np.nan  # a NaN torque in a valid row propagates as before
+    metrics, start = EpisodeMetrics(n, j), 0
+    for size in chunks:
+        metrics.update_steps(*(np.stack([s[i] for s in steps[start:start + size]]) for i in range(7)))
+        start += size
+    for name, wanted in _sequential_metrics(n, j, steps).items():
+        assert _same_bits(getattr(metrics, name), wanted), name
+    assert metrics.rolled_over.any() and metrics.diverged[2]

@@ -214,18 +214,40 @@ def divergence_mask(state: RobotState) -> np.ndarray:
 
 
 def summarize_contacts(spec: RobotSpec, link_names: tuple[str, ...], link_force: np.ndarray) -> Contacts:
-    """`Contacts` from per-link net forces (N, n_links, 3) — the same rule for every backend."""
-    layout = contact_layout(link_names, spec.contact_groups, spec.knee_groups, spec.foot_links)
-    norm = vector_norm(link_force)
-    foot_force = norm[:, layout.feet]
-    return Contacts(
-        link_force=link_force,
-        group_contact=layout.group_contact(norm > CONTACT_FORCE_THRESHOLD),
-        foot_force=foot_force,
-        foot_contact=foot_force > CONTACT_FORCE_THRESHOLD,
-        knee_force_xy=vector_norm(layout.knee_sum(link_force)[..., :2]),
-        body_force_max=norm[:, layout.non_foot].max(axis=1) if layout.has_non_foot else np.zeros(len(link_force)),
-    )
+    """`Contacts` from per-link net forces (N, n_links, 3) — the same rule for every backend. Each summary is
+    computed when it is first read (`SummarizedContacts`)."""
+    return SummarizedContacts(contact_layout(link_names, spec.contact_groups, spec.knee_groups, spec.foot_links),
+                              link_force)
+
+
+class SummarizedContacts(Contacts):
+    """`Contacts` whose summaries are computed from ``link_force`` (N, n_links, 3) by ``layout`` (a
+    `frbench.backends.contact_layout.ContactLayout`) when first read, then kept: a control step whose
+    contacts nobody reads costs the copy of the forces only. Reads as the dataclass does (fields, equality)."""
+
+    def __init__(self, layout, link_force: np.ndarray):  # noqa: D107 (the summaries are filled in on demand)
+        self.link_force = link_force
+        self._layout = layout
+
+    def __getattr__(self, name: str):
+        rule = _SUMMARIES.get(name)
+        if rule is None or "_layout" not in self.__dict__:
+            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+        value = rule(self, self._layout)
+        self.__dict__[name] = value
+        return value
+
+
+#: How each summary of `SummarizedContacts` follows from the link forces (and the summaries it names).
+_SUMMARIES = {
+    "norm": lambda c, layout: vector_norm(c.link_force),
+    "group_contact": lambda c, layout: layout.group_contact(c.norm > CONTACT_FORCE_THRESHOLD),
+    "foot_force": lambda c, layout: c.norm[:, layout.feet],
+    "foot_contact": lambda c, layout: c.foot_force > CONTACT_FORCE_THRESHOLD,
+    "knee_force_xy": lambda c, layout: vector_norm(layout.knee_sum(c.link_force)[..., :2]),
+    "body_force_max": lambda c, layout: (c.norm[:, layout.non_foot].max(axis=1) if layout.has_non_foot
+                                         else np.zeros(len(c.link_force))),
+}
 
 
 def check_base_force(force: np.ndarray, num_envs: int) -> np.ndarray:

@@ -23,13 +23,14 @@ from recorded states instead (demo and rise starts, `frbench.training.start_sour
 
 from __future__ import annotations
 
+from dataclasses import fields
 from typing import Callable
 
 import numpy as np
 
 from frbench.backends import make_backend
 from frbench.backends.contact_layout import vector_norm
-from frbench.backends.base import PhysicsParams, RobotState
+from frbench.backends.base import PhysicsParams, RobotState, SummarizedContacts
 from frbench.robots.spec import RobotSpec
 from frbench.tasks.initial_states import SETTLE_GAIN_SCALE, SETTLE_SECONDS, FallenStarts
 from frbench.tasks.observations import projected_gravity, proprioception
@@ -40,6 +41,11 @@ from frbench.terrains import height_at
 
 EPISODE_STEPS = int(round(EPISODE_SECONDS / CONTROL_DT))
 SETTLE_STEPS = int(round(SETTLE_SECONDS / CONTROL_DT))
+#: ``metrics`` before the first episode (None is an episode without metrics).
+_NO_EPISODE = object()
+#: Kept steps (class docstring) at which the success test and the metrics catch up unasked: bounds the memory
+#: of a long run that never reads them (any count gives the same numbers).
+CATCH_UP_STEPS = 128
 
 
 def settle_params(params: PhysicsParams) -> PhysicsParams:
@@ -73,6 +79,12 @@ class RecoveryTask:
     ``settle_diverged`` (N,) and ``t`` (control steps since t = 0). After each ``step`` also ``signals``
     (the `StepSignals` the success test read), ``gravity`` (N, 3) (the projected gravity) and ``alive`` (N,)
     (not diverged, settle included).
+
+    A step keeps its state, contacts and divergence; the success test and the metrics take the steps kept
+    when ``success``, ``metrics`` or ``signals`` is read (or `CATCH_UP_STEPS` have gathered), all at once:
+    the per-step signals of k steps are computed as (k, N) arrays, element for element what each step
+    would have computed, and `SuccessTracker.update_steps` / `EpisodeMetrics.update_steps` give the numbers
+    of k single steps. An evaluation reads them at the end; training reads ``signals`` after every step.
     """
 
     def __init__(self, spec: RobotSpec, backend, terrain, num_envs: int, noise_rng=None,
@@ -89,6 +101,9 @@ class RecoveryTask:
         self.ground_height = ground_height or self._height_of_terrain
         self._terrain_ground = ground_height is None
         self._gravity_state = None  # the state ``gravity`` was computed from
+        self._kept: list[tuple] = []  # steps not yet fed to the success test and the metrics
+        self._success = self._signals_now = self._diverged = None
+        self._metrics = _NO_EPISODE
         self.nominal_height = spec.nominal_height if nominal_height is None else nominal_height
         self.track_metrics = track_metrics
         self.surface_rules = surface_rules
@@ -128,6 +143,65 @@ class RecoveryTask:
         tracker = SuccessTracker(self.num_envs, self.spec.kind, self.nominal_height)
         return tracker.up_pose(self._signals(self.contacts))
 
+    # ------------------------------------------------------------------ the success test and the metrics
+    @property
+    def success(self) -> SuccessTracker:
+        """The episodes' `SuccessTracker`, up to the last step."""
+        self._catch_up()
+        if self._success is None:
+            raise AttributeError("success: no episode started yet")
+        return self._success
+
+    @success.setter
+    def success(self, tracker: SuccessTracker) -> None:
+        self._catch_up()
+        self._success = tracker
+
+    @property
+    def metrics(self) -> EpisodeMetrics | None:
+        """The episodes' `EpisodeMetrics` up to the last step (None without ``track_metrics``)."""
+        self._catch_up()
+        if self._metrics is _NO_EPISODE:
+            raise AttributeError("metrics: no episode started yet")
+        return self._metrics
+
+    @metrics.setter
+    def metrics(self, metrics: EpisodeMetrics | None) -> None:
+        self._catch_up()
+        self._metrics = metrics
+
+    @property
+    def signals(self) -> StepSignals:
+        """The `StepSignals` of the last step."""
+        self._catch_up()
+        return self._signals_now
+
+    @property
+    def alive(self) -> np.ndarray:
+        """(N,) not diverged at the last step, settle included."""
+        if self._diverged is None:
+            raise AttributeError("alive: no step taken yet")
+        return ~self._diverged
+
+    def _catch_up(self) -> None:
+        """Feed the kept steps to the success test and the metrics: their signals as (k, N) arrays, then one
+        `update_steps` each."""
+        if not self._kept:
+            return
+        kept, self._kept = self._kept, []
+        states = [step[0] for step in kept]
+        base_pos, base_quat = _rows(states, "base_pos"), _rows(states, "base_quat")
+        q = _rows(states, "q")
+        group_contact, body_force_max = _contact_rows([step[1] for step in kept])
+        diverged = np.stack([step[2] for step in kept])
+        gravity = np.stack([step[3] for step in kept])
+        signals = self._signals_of(base_pos, base_quat, q, gravity, group_contact)
+        self._signals_now = StepSignals(*(None if a is None else a[-1] for a in _fields(signals)))
+        self._success.update_steps(signals, alive=~diverged)
+        if self._metrics is not None and self._metrics is not _NO_EPISODE:
+            self._metrics.update_steps(q, _rows(states, "qd"), _rows(states, "tau"), _rows(states, "base_angvel")[..., 0],
+                                       body_force_max, signals.displacement, diverged)
+
     def reset(self, starts: FallenStarts, params: PhysicsParams | None = None,
               settle_steps: int = SETTLE_STEPS) -> dict[str, np.ndarray]:
         """Place and settle the starts (one per environment) under ``params`` (default: the spec's nominal
@@ -138,8 +212,9 @@ class RecoveryTask:
         self.settle(starts, settle_steps)
         self.starts = screen_starts(self, starts, settle_steps)
         self.previous_action = np.tile(self.default_pose, (n, 1))
-        self.success = SuccessTracker(n, self.spec.kind, self.nominal_height)
-        self.metrics = EpisodeMetrics(n, self.spec.n_joints) if self.track_metrics else None
+        self._kept, self._signals_now, self._diverged = [], None, None
+        self._success = SuccessTracker(n, self.spec.kind, self.nominal_height)
+        self._metrics = EpisodeMetrics(n, self.spec.n_joints) if self.track_metrics else None
         self.settle_diverged = self.backend.diverged.copy()
         self.t = 0
         return self.observation()
@@ -147,6 +222,7 @@ class RecoveryTask:
     def restart(self, ids: np.ndarray, state: RobotState) -> None:
         """Before the first step: start episodes ``ids`` from ``state`` (len(ids) rows) instead of their
         settled fallen starts (displacement is measured from there)."""
+        self._catch_up()
         self.backend.reset(ids, state)
         self.state, self.contacts = self.backend.state(), self.backend.contacts()
         self._measure_start()
@@ -156,18 +232,31 @@ class RecoveryTask:
         """What the success test reads in the current state (``gravity`` is refreshed here)."""
         s = self.state
         self.gravity, self._gravity_state = projected_gravity(s.base_quat), s
-        xy = s.base_pos[:, :2]
-        ground = self.ground_height(xy)
+        signals = self._signals_of(s.base_pos[None], s.base_quat[None], s.q[None], self.gravity[None],
+                                   contacts.group_contact[None])
+        return StepSignals(*(None if a is None else a[0] for a in _fields(signals)))
+
+    def _signals_of(self, base_pos, base_quat, q, gravity, group_contact) -> StepSignals:
+        """The `StepSignals` (k, N) of k steps: base_pos (k, N, 3) [m], base_quat (k, N, 4), q (k, N, J) [rad],
+        gravity (k, N, 3) (projected), group_contact (k, N, G)."""
+        xy = base_pos[..., :2]
+        if self._terrain_ground:
+            ground = height_at(self.terrain, xy)
+        else:  # a caller's rule for N points at a time
+            ground = np.stack([self.ground_height(step) for step in xy])
         surface_drop = None
         if self.start_surface is not None:  # the terrain's height under the base is ``ground`` unless given
             surface_drop = self.start_surface.drop(xy, ground if self._terrain_ground else None)
+        torso = None
+        if self.torso is not None:
+            torso = self.torso.gravity_z(base_quat.reshape(-1, 4), q.reshape(-1, q.shape[-1])).reshape(xy.shape[:2])
         return StepSignals(
-            gravity_z=self.gravity[:, 2],
-            height=s.base_pos[:, 2] - ground,
-            body_contact=contacts.group_contact.any(axis=1),
+            gravity_z=gravity[..., 2],
+            height=base_pos[..., 2] - ground,
+            body_contact=group_contact.any(axis=-1),
             displacement=vector_norm(xy - self.start_xy),
             surface_drop=surface_drop,
-            torso_gravity_z=self.torso.gravity_z(s.base_quat, s.q) if self.torso is not None else None,
+            torso_gravity_z=torso,
         )
 
     def observation(self) -> dict[str, np.ndarray]:
@@ -177,24 +266,42 @@ class RecoveryTask:
 
     def advance(self, targets: np.ndarray) -> None:
         """Advance one control step towards ``targets`` (N, n_joints) [rad] (clipped to the joint limits):
-        physics, then ``state``, ``contacts``, ``signals``, ``alive``, success and metrics."""
-        targets = np.clip(targets, self.lower, self.upper)
+        physics, then ``state``, ``contacts``, ``gravity`` and ``alive``; the step is kept for the success test
+        and the metrics (class docstring)."""
+        targets = np.minimum(np.maximum(targets, self.lower), self.upper)  # np.clip's result, without its checks
         self.backend.step(targets)
         self.previous_action = targets
-        self.state = self.backend.state()
-        self.contacts = contacts = self.backend.contacts()
-        diverged = self.backend.diverged | self.settle_diverged
-        self.alive = ~diverged
-        self.signals = signals = self._signals(contacts)
-        self.success.update(signals, alive=self.alive)
-        if self.metrics is not None:
-            self.metrics.update(
-                self.state.q, self.state.qd, self.state.tau, self.state.base_angvel[:, 0],
-                contacts.body_force_max, signals.displacement, diverged,
-            )
+        self.state = state = self.backend.state()
+        self.contacts = self.backend.contacts()
+        self._diverged = self.backend.diverged | self.settle_diverged
+        self.gravity, self._gravity_state = projected_gravity(state.base_quat), state
+        self._kept.append((state, self.contacts, self._diverged, self.gravity))
+        if len(self._kept) >= CATCH_UP_STEPS:
+            self._catch_up()
         self.t += 1
 
     def step(self, targets: np.ndarray) -> dict[str, np.ndarray]:
         """`advance` one control step towards ``targets`` (N, n_joints) [rad]; return the observation."""
         self.advance(targets)
         return self.observation()
+
+
+def _rows(states: list[RobotState], name: str) -> np.ndarray:
+    """(k, N, ·): field ``name`` of k states, step after step (a view for one state)."""
+    return getattr(states[0], name)[None] if len(states) == 1 else np.stack([getattr(s, name) for s in states])
+
+
+def _contact_rows(readings: list) -> tuple[np.ndarray, np.ndarray]:
+    """(group contact (k, N, G), largest non-foot force (k, N)) of k steps' `Contacts`; summarised together from
+    the stacked link forces when each reading summarises lazily by one rule (`SummarizedContacts`)."""
+    first = readings[0]
+    if len(readings) > 1 and all(isinstance(c, SummarizedContacts) and c._layout is first._layout for c in readings):
+        forces = np.stack([c.link_force for c in readings])
+        k, n = forces.shape[:2]
+        together = SummarizedContacts(first._layout, forces.reshape(k * n, *forces.shape[2:]))
+        return together.group_contact.reshape(k, n, -1), together.body_force_max.reshape(k, n)
+    return (np.stack([c.group_contact for c in readings]), np.stack([c.body_force_max for c in readings]))
+
+
+def _fields(signals: StepSignals) -> list:
+    return [getattr(signals, f.name) for f in fields(StepSignals)]

@@ -28,7 +28,7 @@ maximum displacement [m], divergence.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -89,12 +89,12 @@ class StartSurface:
         self.z = np.array([support_height(terrain, xy, START_SURFACE_RADIUS_M) for xy in np.asarray(start_xy)])
 
     def drop(self, base_xy: np.ndarray, terrain_height: np.ndarray | None = None) -> np.ndarray:
-        """(N,) [m] the start surface's height minus the terrain height beneath ``base_xy`` (N, 2); 0 on an incline.
-        ``terrain_height`` (N,) [m]: ``height_at(terrain, base_xy)`` when the caller has it already."""
+        """(…, N) [m] the start surface's height minus the terrain height beneath ``base_xy`` (…, N, 2); 0 on an
+        incline. ``terrain_height`` (…, N) [m]: ``height_at(terrain, base_xy)`` when the caller has it already."""
         from frbench.terrains import height_at
 
         if self.incline:
-            return np.zeros(len(base_xy))
+            return np.zeros(np.shape(base_xy)[:-1])
         return self.z - (height_at(self.terrain, base_xy) if terrain_height is None else terrain_height)
 
 
@@ -190,19 +190,48 @@ class SuccessTracker:
 
     def update(self, s: StepSignals, alive: np.ndarray | None = None) -> None:
         """Feed one control step (``alive`` False for diverged episodes, which cannot succeed)."""
-        self._step += 1
+        self.update_steps(_leading_step(s), None if alive is None else alive[None])
+
+    def update_steps(self, s: StepSignals, alive: np.ndarray | None = None) -> None:
+        """Feed k control steps at once: ``s``'s arrays and ``alive`` are (k, N), step after step. The same as k
+        calls of `update` (the streaks, the first step of each hold and the divergence masks are integer and
+        boolean bookkeeping, here done with cumulative maxima over the steps instead of a loop)."""
         up = self.upright(s) if alive is None else self.upright(s) & alive
-        self._streak = np.where(up, self._streak + 1, 0)
-        done = (self._streak >= HOLD_STEPS) & ~self.success & (s.displacement < MAX_DISPLACEMENT)
-        self.time_to_recover[done] = (self._step - HOLD_STEPS + 1) * CONTROL_DT
-        self.success |= done
-        if alive is not None:
-            self.success &= alive
+        k = len(up)
+        steps = np.arange(1, k + 1)[:, None]  # 1..k
+        last_down = np.maximum.accumulate(np.where(up, 0, steps), axis=0)  # the last step not upright (0: none)
+        streak = steps - last_down + np.where(last_down == 0, self._streak, 0)
+        holds = (streak >= HOLD_STEPS) & (s.displacement < MAX_DISPLACEMENT)
+        # success_t = alive_t & (success_{t-1} | holds_t): true when a hold came after the last dead step
+        last_hold = np.maximum.accumulate(np.where(holds, steps, 0), axis=0)
+        last_dead = np.zeros_like(last_hold) if alive is None else np.maximum.accumulate(np.where(alive, 0, steps), axis=0)
+        success = (last_hold > last_dead) | (self.success & (last_dead == 0))
+        before = np.concatenate([self.success[None], success[:-1]])
+        done = holds & ~before
+        if done.any():
+            last_done = k - 1 - np.argmax(done[::-1], axis=0)  # each environment's last step with a new hold
+            rows = np.flatnonzero(done.any(axis=0))
+            self.time_to_recover[rows] = (self._step + 1 + last_done[rows] - HOLD_STEPS + 1) * CONTROL_DT
+        self._streak = streak[-1]
+        self.success = success[-1].copy()
+        self._step += k
+
+
+def _leading_step(s: StepSignals) -> StepSignals:
+    """``s`` with a leading axis of one step: (N,) arrays become (1, N)."""
+    return StepSignals(*(None if getattr(s, f.name) is None else np.asarray(getattr(s, f.name))[None]
+                         for f in fields(StepSignals)))
 
 
 def _where_ok(ok: np.ndarray | None, values: np.ndarray, other: "float | np.ndarray" = 0.0) -> np.ndarray:
     """``np.where(ok, values, other)``; ``ok`` None means every row (then ``values`` themselves, the same numbers)."""
     return values if ok is None else np.where(ok, values, other)
+
+
+def _running_sum(start: np.ndarray, steps: np.ndarray) -> np.ndarray:
+    """(k, N): ``start`` (N,) plus the rows of ``steps`` (k, N) added one after another (``np.add.accumulate``
+    adds in order, as ``start += row`` does row by row)."""
+    return np.add.accumulate(np.concatenate([start[None], steps]), axis=0)[1:]
 
 
 class EpisodeMetrics:
@@ -222,19 +251,37 @@ class EpisodeMetrics:
         self._q_prev2 = None
 
     def update(self, q, qd, tau, angvel_x, body_force_max, displacement, diverged) -> None:
-        """Feed one control step: q, qd, tau (N, n_joints); angvel_x, body_force_max, displacement (N,)."""
-        ok = ~diverged if diverged.any() else None  # None: every row (the common step)
-        self.energy += _where_ok(ok, np.abs(tau * qd).sum(axis=1) * CONTROL_DT)
-        self.peak_contact_force = np.maximum(self.peak_contact_force, _where_ok(ok, body_force_max))
-        self.max_displacement = np.maximum(self.max_displacement, _where_ok(ok, displacement))
-        self.final_displacement = np.array(_where_ok(ok, displacement, self.final_displacement))
-        self.roll += _where_ok(ok, angvel_x * CONTROL_DT)
-        self.rolled_over |= np.abs(self.roll) > np.pi
-        self.diverged |= diverged
-        if self._q_prev2 is not None:
-            self._second_diff_sum += _where_ok(ok, np.abs(q - 2 * self._q_prev + self._q_prev2).mean(axis=1))
-            self._second_diff_count += 1
-        self._q_prev2, self._q_prev = self._q_prev, q.copy()
+        """Feed one control step: q, qd, tau (N, n_joints); angvel_x, body_force_max, displacement, diverged (N,)."""
+        self.update_steps(*(np.asarray(a)[None] for a in (q, qd, tau, angvel_x, body_force_max, displacement,
+                                                          diverged)))
+
+    def update_steps(self, q, qd, tau, angvel_x, body_force_max, displacement, diverged) -> None:
+        """Feed k control steps at once, each argument with a leading step axis: q, qd, tau (k, N, n_joints);
+        angvel_x, body_force_max, displacement, diverged (k, N). The same numbers as k calls of `update`: the
+        running sums are cumulative sums along the steps (one addition after another, as the loop adds), the
+        rest maxima and the last valid value."""
+        ok = ~diverged if diverged.any() else None  # None: every row (the common case)
+        self.energy = _running_sum(self.energy, _where_ok(ok, np.abs(tau * qd).sum(axis=-1) * CONTROL_DT))[-1]
+        self.peak_contact_force = np.maximum(self.peak_contact_force, _where_ok(ok, body_force_max).max(axis=0))
+        self.max_displacement = np.maximum(self.max_displacement, _where_ok(ok, displacement).max(axis=0))
+        if ok is None:
+            self.final_displacement = displacement[-1].copy()
+        else:
+            last = len(ok) - 1 - np.argmax(ok[::-1], axis=0)  # each environment's last valid step
+            self.final_displacement = np.where(ok.any(axis=0), displacement[last, np.arange(ok.shape[1])],
+                                               self.final_displacement)
+        rolls = _running_sum(self.roll, _where_ok(ok, angvel_x * CONTROL_DT))
+        self.roll = rolls[-1]
+        self.rolled_over |= (np.abs(rolls) > np.pi).any(axis=0)
+        self.diverged |= diverged.any(axis=0)
+        joints = np.concatenate([p[None] for p in (self._q_prev2, self._q_prev) if p is not None] + [q])
+        if len(joints) >= 3:  # the steps that have two predecessors
+            second = np.abs(joints[2:] - 2 * joints[1:-1] + joints[:-2]).mean(axis=-1)
+            second = _where_ok(None if ok is None else ok[len(ok) - len(second):], second)
+            self._second_diff_sum = _running_sum(self._second_diff_sum, second)[-1]
+            self._second_diff_count += len(second)
+        self._q_prev2 = joints[-2].copy() if len(joints) >= 2 else None
+        self._q_prev = joints[-1].copy()
 
     @property
     def smoothness(self) -> np.ndarray:
