@@ -136,3 +136,15 @@ def test_ctrl_c_during_an_evaluation_with_workers_prints_one_line_and_exits_130(
     assert process.returncode == 130
     assert lines[-1] == "frbench evaluate: interrupted" and len(lines) == 2, lines  # the header, then that line
     assert "Traceback" not in stderr.decode() and not out.exists()
+
+
+def test_a_closed_stdout_pipe_ends_the_command_quietly(monkeypatch, capfd):
+    """`frbench ... | head -1`: the reader goes away mid-output; no traceback, exit 141 (128 + SIGPIPE) like other tools."""
+    from frbench.commands import leaderboard
+
+    def closed_pipe(args):
+        raise BrokenPipeError(32, "Broken pipe")
+
+    monkeypatch.setattr(leaderboard, "run_leaderboard", closed_pipe)
+    assert main(["leaderboard"]) == 141
+    assert capfd.readouterr().err == ""
