@@ -49,7 +49,7 @@ def ray_instance():
 def _same_results(results: dict, local: dict) -> None:
     assert len(results["episodes"]) == 8
     assert results["episodes"] == local["episodes"]
-    assert {k for k in results if results[k] != local[k]} == {"created"}
+    assert {k for k in results if results[k] != local[k]} <= {"created"}  # the same second gives the same stamp
     assert "executor" not in results["config"] and "jobs" not in results["config"]
 
 
