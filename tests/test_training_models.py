@@ -276,6 +276,30 @@ def test_the_estimator_trains_on_ppos_mini_batches_with_one_encoder_pass_each(mo
         make_runner("frnet", num_envs=16, overrides={"algorithm": {"estimator_epochs": 3}})
 
 
+def test_fused_optimisers_step_as_plain_adam_and_resume_its_state():
+    """Both optimisers use torch's fused Adam; a step equals plain (rsl-rl's) Adam's to float32 round-off, and a
+    plain-Adam optimiser state (checkpoints written before) loads and continues."""
+    env, runner = make_runner("frnet", num_envs=16)
+    alg: EstimatorPPO = runner.alg
+    assert alg.optimizer.defaults["fused"] and alg.estimator_optimizer.defaults["fused"]
+    params = [p for g in alg.optimizer.param_groups for p in g["params"]]
+    twins = [p.detach().clone().requires_grad_(True) for p in params]
+    plain = torch.optim.Adam(twins, lr=1e-3)
+    generator = torch.Generator().manual_seed(0)
+    for _ in range(3):
+        for p, twin in zip(params, twins):
+            p.grad = torch.randn(p.shape, generator=generator)
+            twin.grad = p.grad.clone()
+        alg.optimizer.step()
+        plain.step()
+    worst = max(float((p - twin).abs().max()) for p, twin in zip(params, twins))
+    assert worst < 1e-6  # three steps of 1e-3 each: the kernels agree to round-off
+    alg.optimizer.load_state_dict(plain.state_dict())
+    assert float(alg.optimizer.state_dict()["state"][0]["step"]) == 3.0
+    runner.learn(1)  # continues from the loaded state
+    assert float(alg.optimizer.state_dict()["state"][0]["step"]) > 3.0
+
+
 def test_estimator_batch_pairs_each_step_with_the_next_observation():
     env, runner = make_runner("frnet", num_envs=4, overrides={"num_steps_per_env": 12})
     env.max_episode_length = 5  # episode ends inside the rollout

@@ -5,7 +5,7 @@
   of each mini-batch runs the encoder once, with gradients, and keeps its
   output; the policy reads the features detached, and after PPO's step on that
   mini-batch the estimator takes one step of its own Adam optimiser on the same
-  rows. PPO's optimiser holds every actor/critic parameter *except* the
+  rows. PPO's optimiser (fused Adam) holds every actor/critic parameter *except* the
   estimator's, and the estimator's optimiser only the estimator's: the two
   losses never mix.
 * :class:`RMAAdaptation` (``"frbench.training.algorithm:RMAAdaptation"``): RMA
@@ -62,6 +62,17 @@ def update_threads() -> int:
     return 1 if os.getloadavg()[0] > cores else cores
 
 
+#: Optimisers with torch's fused kernel on CPU (one kernel per step over every parameter, instead of ~10 small
+#: ops per tensor): measured about 0.03 s less per FR-Net update of 0.59 s (256 envs, 2 threads, 6 runs).
+FUSED_OPTIMIZERS = ("adam", "adamw")
+
+
+def make_optimizer(name: str, params, learning_rate: float) -> torch.optim.Optimizer:
+    """rsl-rl's optimiser ``name`` over ``params``, with the fused kernel where torch has one (Adam, AdamW)."""
+    extra = {"fused": True} if name.lower() in FUSED_OPTIMIZERS else {}
+    return resolve_optimizer(name)(list(params), lr=learning_rate, **extra)  # type: ignore[operator]
+
+
 @contextmanager
 def torch_threads(count: int):
     """Run the block with ``torch.set_num_threads(count)``, then restore the previous count."""
@@ -109,11 +120,11 @@ class EstimatorPPO(PPO):
         self._next_obs: TensorDict | None = None
         self._estimator_sums: dict[str, float] = {}
         self._estimator_steps = 0
+        own = {id(p) for p in self.estimator.parameters()} if self.estimator is not None else set()
+        rl_params = [p for p in chain(self.actor.parameters(), self.critic.parameters()) if id(p) not in own]
+        self.optimizer = make_optimizer(optimizer, rl_params, learning_rate)
         if self.estimator is not None:
-            own = {id(p) for p in self.estimator.parameters()}
-            rl_params = [p for p in chain(self.actor.parameters(), self.critic.parameters()) if id(p) not in own]
-            self.optimizer = resolve_optimizer(optimizer)(rl_params, lr=learning_rate)  # type: ignore[operator]
-            self.estimator_optimizer = torch.optim.Adam(self.estimator.parameters(), lr=estimator_learning_rate)
+            self.estimator_optimizer = make_optimizer("adam", self.estimator.parameters(), estimator_learning_rate)
 
     def compute_returns(self, obs: TensorDict) -> None:
         """PPO's returns; keeps ``obs`` (o_{T}) as the last reconstruction target."""
@@ -252,7 +263,7 @@ class RMAAdaptation:
         self.num_mini_batches = num_mini_batches
         self.max_grad_norm = max_grad_norm
         self.act_stochastic = act_stochastic
-        self.optimizer = torch.optim.Adam(self.actor.adaptation.parameters(), lr=learning_rate)
+        self.optimizer = make_optimizer("adam", self.actor.adaptation.parameters(), learning_rate)
         self.rnd = None
         groups = actor.obs_groups[1:]  # extrinsics, long history
         self.buffer = TensorDict(
