@@ -16,8 +16,8 @@ from frbench.cli import main
 
 WORKER = Path(__file__).with_name("distributed_train_worker.py")
 ROOT = Path(__file__).resolve().parents[1]
-TINY = ["--method", "frnet", "--envs", "8", "--episode-steps", "5", "--settle-steps", "2", "--morphologies", "2",
-        "--terrains", "flat,rough"]
+TINY = ["--method", "frnet", "--envs", "8", "--set", "episode_steps=5", "--set", "settle_steps=2",
+        "--set", "num_morphologies=2", "--terrains", "flat,rough"]
 STEPS_PER_ITERATION = 8 * 24 * 2  # envs x steps per env x ranks
 
 

@@ -124,9 +124,10 @@ def test_ctrl_c_during_an_evaluation_with_workers_prints_one_line_and_exits_130(
     import time
 
     out = tmp_path / "r.json"
+    # 144 cells: minutes of work on two workers, so that the interrupt comes while cells are running
     argv = [sys.executable, "-m", "frbench.cli", "evaluate", "--policy", "scripted", "--robots", "go2", "--backends",
-            "mujoco,pybullet", "--terrains", "flat,rough", "--levels", "1", "--seeds", "0,1", "--episodes", "8",
-            "--jobs", "2", "--out", str(out)]
+            "mujoco,pybullet", "--terrains", "flat,rough,stairs", "--levels", "1,5,10", "--seeds", "0,1,2,3,4,5,6,7",
+            "--episodes", "8", "--jobs", "2", "--out", str(out)]
     process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True,
                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     time.sleep(15)  # the workers have started and are running cells
