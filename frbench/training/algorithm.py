@@ -5,7 +5,7 @@
   of each mini-batch runs the encoder once, with gradients, and keeps its
   output; the policy reads the features detached, and after PPO's step on that
   mini-batch the estimator takes one step of its own Adam optimiser on the same
-  rows. PPO's optimiser (fused Adam) holds every actor/critic parameter *except* the
+  rows. PPO's optimiser (fused where torch has the kernel) holds every actor/critic parameter *except* the
   estimator's, and the estimator's optimiser only the estimator's: the two
   losses never mix.
 * :class:`RMAAdaptation` (``"frbench.training.algorithm:RMAAdaptation"``): RMA
