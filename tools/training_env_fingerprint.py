@@ -19,8 +19,8 @@ The refactor of the training env into an adapter over `frbench.tasks.recovery.Re
 against a reference recorded on the env before it (identical for every config); the reference was then
 re-recorded when MuJoCo's native position actuators changed the simulator's numerics, and again, with the
 same numbers, to add the group sums.
-tests/test_training_env_fingerprint.py checks that the env still reproduces it exactly, so a change of the
-training env's numbers is a deliberate act (re-record it and say why in the commit).
+tests/test_training_env_fingerprint.py checks that the env still reproduces it (within round-off, episode ends
+exactly), so a change of the training env's numbers is a deliberate act (re-record it and say why in the commit).
 
     PYTHONPATH=$PWD python tools/training_env_fingerprint.py --out tests/data/training_env_fingerprint.npz
     PYTHONPATH=$PWD python tools/training_env_fingerprint.py --check tests/data/training_env_fingerprint.npz
