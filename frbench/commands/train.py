@@ -154,8 +154,7 @@ def new_run_config(args, command: str, weights: dict[str, float], ranges: dict):
     for term, weight in weights.items():
         reward = reward.with_weight(term, weight, f"set on the command line ({command})")
     cfg = dataclasses.replace(cfg, reward=reward)
-    overrides = None if preset.init_std is None else {"actor": {"distribution_cfg": {"init_std": preset.init_std}}}
-    return cfg, overrides
+    return cfg, preset.train_overrides()
 
 
 def run(args) -> int:

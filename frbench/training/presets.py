@@ -12,6 +12,7 @@ from types import MappingProxyType
 from typing import Mapping
 
 from frbench.training.rewards import STABILITY_TERMS
+from frbench.training.symmetry import SYMMETRY_AUGMENTATION
 
 #: Scale of the motion penalties in the G1 residual runs, relative to the paper's weights.
 G1_MOTION_PENALTY_SCALE = 0.01
@@ -29,6 +30,8 @@ class Preset:
         reward_weights: reward term → weight.
         drop_terms: reward terms left out (ablations).
         init_std: the Gaussian actions' initial std (None: the method's).
+        symmetry: train with rsl-rl's symmetry augmentation: every PPO mini-batch also holds its left/right
+            mirror image (`frbench.training.symmetry`; quadrupeds in frbench's canonical joint order).
     """
 
     description: str
@@ -37,6 +40,16 @@ class Preset:
     reward_weights: Mapping[str, float] = field(default_factory=lambda: MappingProxyType({}))
     drop_terms: tuple[str, ...] = ()
     init_std: float | None = None
+    symmetry: bool = False
+
+    def train_overrides(self) -> dict | None:
+        """The changes to the method's rsl-rl config (None: none)."""
+        overrides: dict = {}
+        if self.init_std is not None:
+            overrides["actor"] = {"distribution_cfg": {"init_std": self.init_std}}
+        if self.symmetry:
+            overrides["algorithm"] = {"symmetry_cfg": dict(SYMMETRY_AUGMENTATION)}
+        return overrides or None
 
 
 PRESETS: Mapping[str, Preset] = MappingProxyType({
@@ -45,6 +58,9 @@ PRESETS: Mapping[str, Preset] = MappingProxyType({
         "paper setup, half the episodes starting along the scripted getting-up motion, annealed to 0 "
         "(the shipped frnet and the 3.07 M budget runs)",
         env=MappingProxyType({"demo_start_fraction": 0.5})),
+    "symmetry": Preset(
+        "demo-starts with rsl-rl's symmetry augmentation: each PPO mini-batch also holds its left/right mirror",
+        env=MappingProxyType({"demo_start_fraction": 0.5}), symmetry=True),
     "no-stability": Preset(
         "demo-starts without the stability reward terms (the frnet-no-stability ablation)",
         env=MappingProxyType({"demo_start_fraction": 0.5}), drop_terms=STABILITY_TERMS),

@@ -1,0 +1,127 @@
+"""Learning-curve benchmark: does a training recipe learn in every seed, and how soon?
+
+Trains one recipe (``--preset`` plus ``--set FIELD=VALUE`` fields, ``--method``) with several seeds to a fixed
+env-step budget, each seed in its own run folder ``OUT/seed<S>`` (``frbench train``: resumable, so a killed
+benchmark continues where its checkpoints stopped when started again with the same arguments), then prints each
+seed's *training* success at fixed step marks: flat ground and all terrains, read from the run's learning curve
+(``progress.json``: the rate over the episodes that ended in the logging window, actions sampled with the
+policy's exploration noise, starts of every kind the recipe draws; the first logged point at or after each mark).
+
+The recipes' defaults: randomised morphologies of the paper's table on every terrain family, 256 envs, the
+curriculum from level 1: the runs of the shipped FR-Net. The target of the FR-Net recipe work is
+``>= 0.6`` flat training success at 3 M env steps in each of 3 seeds.
+
+Run (three seeds side by side; ``--jobs 1`` trains them one after another)::
+
+    python benchmarks/learning_curve.py --preset symmetry --out runs/lc-symmetry --seeds 0,1,2 --steps 3.07e6
+    python benchmarks/learning_curve.py --out runs/lc-symmetry --report     # the table of existing runs only
+
+Prints one row per seed and mark, then per mark the mean and the minimum over the seeds, then
+``reached target: K/N seeds`` (flat success >= ``--target`` at the last mark).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shlex
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+MARKS = (0.5e6, 1.0e6, 1.5e6, 2.0e6, 2.5e6, 3.0e6)
+
+
+def train_command(args, seed: int, folder: Path) -> list[str]:
+    """The ``frbench train`` command of one seed: a new run, or the run's resumption when its folder exists."""
+    frbench = [sys.executable, "-m", "frbench"]
+    if (folder / "config.json").is_file():
+        return [*frbench, "train", "--resume", str(folder), "--steps", str(args.steps)]
+    fields = [x for item in args.fields for x in ("--set", item)]
+    return [*frbench, "train", "--method", args.method, "--preset", args.preset, "--envs", str(args.envs),
+            "--steps", str(args.steps), "--set", f"seed={seed}", *fields, "--out", str(folder)]
+
+
+def train_all(args, seeds: list[int]) -> None:
+    """Train the seeds, ``args.jobs`` at a time; each writes its log beside its run (``OUT/seed<S>.log``)."""
+    args.out.mkdir(parents=True, exist_ok=True)
+    pending, running = list(seeds), []
+    while pending or running:
+        while pending and len(running) < args.jobs:
+            seed = pending.pop(0)
+            folder = args.out / f"seed{seed}"
+            command = train_command(args, seed, folder)
+            log = open(args.out / f"seed{seed}.log", "a")
+            log.write("$ " + " ".join(shlex.quote(c) for c in command) + "\n")
+            log.flush()
+            running.append((seed, subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT), log))
+        time.sleep(5)
+        for item in list(running):
+            seed, process, log = item
+            if process.poll() is not None:
+                log.close()
+                running.remove(item)
+                if process.returncode != 0:
+                    print(f"seed {seed}: frbench train exited {process.returncode} (log: {log.name})", file=sys.stderr)
+
+
+def at_mark(progress: list[dict], mark: float) -> dict | None:
+    """The first logged point at or after ``mark`` env steps (None: the run has not got there)."""
+    return next((row for row in progress if row["env_steps"] >= mark), None)
+
+
+def report(out: Path, seeds: list[int], target: float, marks=MARKS) -> int:
+    """Print the per-seed table; the number of seeds whose flat success at the last mark is >= ``target``."""
+    rows: dict[int, list] = {}
+    for seed in seeds:
+        path = out / f"seed{seed}" / "progress.json"
+        progress = json.loads(path.read_text()) if path.is_file() else []
+        rows[seed] = [at_mark(progress, m) for m in marks]
+    header = "seed  " + "  ".join(f"{m / 1e6:>9.1f}M" for m in marks)
+    print(f"training success, flat / all terrains, at env-step marks ({out})")
+    print(header)
+    for seed, points in rows.items():
+        cells = [f"{p['success_flat']:.2f}/{p['success_all']:.2f}" if p else "    -    " for p in points]
+        print(f"{seed:>4}  " + "  ".join(f"{c:>10}" for c in cells))
+    for name, reduce in (("mean", lambda v: sum(v) / len(v)), ("min", min)):
+        cells = []
+        for i in range(len(marks)):
+            points = [rows[s][i] for s in seeds]
+            if all(points):
+                cells.append(f"{reduce([p['success_flat'] for p in points]):.2f}/"
+                             f"{reduce([p['success_all'] for p in points]):.2f}")
+            else:
+                cells.append("    -    ")
+        print(f"{name:>4}  " + "  ".join(f"{c:>10}" for c in cells))
+    last = [rows[s][-1] for s in seeds]
+    reached = sum(1 for p in last if p and p["success_flat"] >= target)
+    walls = [p["wall_s"] / 60 for p in last if p]
+    if walls:
+        print(f"wall-clock to the last mark: {', '.join(f'{w:.1f}' for w in walls)} min")
+    print(f"reached target: {reached}/{len(seeds)} seeds (flat >= {target:g} at {marks[-1] / 1e6:g} M)")
+    return reached
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--out", type=Path, required=True, help="folder of the seeds' run folders")
+    parser.add_argument("--method", default="frnet")
+    parser.add_argument("--preset", default="demo-starts")
+    parser.add_argument("--set", action="append", default=[], dest="fields", metavar="FIELD=VALUE")
+    parser.add_argument("--seeds", default="0,1,2")
+    parser.add_argument("--steps", type=float, default=3.07e6)
+    parser.add_argument("--envs", type=int, default=256)
+    parser.add_argument("--jobs", type=int, default=3, help="seeds trained at once")
+    parser.add_argument("--target", type=float, default=0.6)
+    parser.add_argument("--report", action="store_true", help="print the table of the existing runs only")
+    args = parser.parse_args(argv)
+    seeds = [int(s) for s in args.seeds.split(",")]
+    if not args.report:
+        train_all(args, seeds)
+    report(args.out, seeds, args.target)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
