@@ -69,7 +69,14 @@ def run_cell(cell: Cell, policy_reference: str, noise: bool = False) -> list[dic
     try:
         obs = task.reset(starts)
         policy.reset(spec, cell.episodes)
+        # A policy that declares ``uses_simulator_state`` (the `mpc` planner, not a blind policy; its results
+        # say so) gets the cell's terrain and seed, then the simulator's `RobotState` before every action.
+        privileged = getattr(policy, "uses_simulator_state", False)
+        if privileged:
+            policy.reset_episode(terrain, cell.seed)
         for _ in range(EPISODE_STEPS):
+            if privileged:
+                policy.observe_state(task.state)
             actions = checked_actions(policy, policy.act(obs), cell.episodes, spec.n_joints)
             obs = task.step(actions)
     finally:
