@@ -86,7 +86,7 @@ def test_schema_copies_match_the_packaged_schemas():
 
 
 def test_schemas_are_valid_draft_2020_12_and_agree_with_jsonschema(full):
-    jsonschema = pytest.importorskip("jsonschema", reason="jsonschema is optional; frbench has its own validator")
+    import jsonschema
     from referencing import Registry, Resource
 
     registry = Registry().with_resources(

@@ -1,4 +1,4 @@
-"""frbench's JSON Schemas (package data) and a validator that needs no extra dependency.
+"""frbench's JSON Schemas (package data), validated with the ``jsonschema`` library (draft 2020-12).
 
 * ``results-v1.schema.json``: the file ``frbench evaluate`` writes (``schema_version`` 1).
 * ``record-v1.schema.json``: a leaderboard record (``record_schema_version`` 1),
