@@ -24,8 +24,9 @@ Observation (6 + 3·n_joints,) float32, the paper's o_t: body angular velocity
 bounded (`observation_bounds`: ±`MAX_ANGULAR_VELOCITY`, ±1, the joint range
 around q̊, ±`MAX_JOINT_VELOCITY`) and clipped to those bounds.
 
-Reward: frbench's training reward, the named terms of
-`frbench.training.rewards.compute_rewards` with the tables of the trainer
+Reward: frbench's training reward, computed by the trainer's own
+`frbench.training.step_reward.StepReward` (the same inputs, the velocity-limit
+threshold read from the URDF, the same head point) with the trainer's tables
 (``reward="training"``: `training_reward_config` for quadrupeds,
 `humanoid_reward_config` for humanoids; ``"paper"``: the paper's table; or any
 `RewardConfig`); every term's weighted value is in ``info["reward_terms"]``.
@@ -51,6 +52,9 @@ import gymnasium
 import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
+
+from frbench.terrains import height_at
+from frbench.training.step_reward import HeadPoints, StepReward
 
 ENV_ID = "frbench/FallRecovery-v1"
 #: q* = q̊ + ACTION_SCALE · a, as the shipped policies (their checkpoints' and ONNX sidecars' action_scale).
@@ -115,13 +119,13 @@ class FallRecoveryVectorEnv(VectorEnv):
         self.action_scale = float(action_scale)
         self.terrain = make_terrain(terrain, level, terrain_seed)
         self.terrain_label = f"{terrain} level {level}"
-        self.reward_cfg = reward_config(reward, spec.kind)
         self.task = RecoveryTask(spec, backend, self.terrain, num_envs)
+        head = HeadPoints([spec], np.zeros(num_envs, dtype=int)) if spec.kind == "humanoid" else None
+        self.step_reward = StepReward(reward_config(reward, spec.kind), spec, spec.nominal_height,
+                                      lambda xy: height_at(self.terrain, xy), head)
         self.episode_steps = EPISODE_STEPS
         n = spec.n_joints
         self.default_pose = np.asarray(spec.default_pose)
-        self.lower, self.upper = np.asarray(spec.joint_lower), np.asarray(spec.joint_upper)
-        self.upper_body = np.array([not any(w in name for w in ("hip", "knee", "ankle")) for name in spec.joint_names])
         low, high = observation_bounds(spec)
         self.single_observation_space = gymnasium.spaces.Box(low, high, dtype=np.float32)
         self.single_action_space = gymnasium.spaces.Box(-1.0, 1.0, shape=(n,), dtype=np.float32)
@@ -129,7 +133,6 @@ class FallRecoveryVectorEnv(VectorEnv):
         self.action_space = batch_space(self.single_action_space, num_envs)
         self._rng = np.random.default_rng()
         self._renderer = None
-        self._head = None
 
     # -- observations, actions, rewards ---------------------------------------------------------------------
 
@@ -144,46 +147,10 @@ class FallRecoveryVectorEnv(VectorEnv):
         actions = np.clip(np.asarray(actions, dtype=np.float64).reshape(self.num_envs, -1), -1.0, 1.0)
         return self.default_pose + self.action_scale * actions
 
-    def _head_heights(self) -> np.ndarray:
-        """Humanoids: head height above the terrain (N,) [m], the trainer's head point (Pinocchio)."""
-        import pinocchio
-
-        from frbench.robots import ground_truth
-        from frbench.terrains import height_at
-        from frbench.training.population import HEAD_FRAME, HEAD_OFFSET_M
-
-        if self._head is None:
-            robot = ground_truth.load(self.spec_robot)
-            self._head = (robot, robot.model.createData(), robot.model.getFrameId(HEAD_FRAME))
-        robot, data, frame_id = self._head
-        s = self.task.state
-        heads = np.zeros((self.num_envs, 3))
-        for i in range(self.num_envs):
-            pinocchio.framesForwardKinematics(robot.model, data, ground_truth.configuration(
-                robot, s.base_pos[i], s.base_quat[i], s.q[i]))
-            frame = data.oMf[frame_id]
-            heads[i] = frame.translation + frame.rotation[:, 2] * HEAD_OFFSET_M
-        return heads[:, 2] - height_at(self.terrain, heads[:, :2])
-
     def _reward(self, actions: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        from frbench.backends.base import CONTROL_DT
-        from frbench.training.rewards import RewardInputs, compute_rewards
-
-        s, c = self.task.state, self.task.contacts
-        inputs = RewardInputs(
-            projected_gravity=self.task.observation()["projected_gravity"], q=s.q, qd=s.qd, qd_prev=self._qd_prev,
-            tau=s.tau, action=actions, action_prev=self._actions[0], q_stand=self.default_pose, q_lower=self.lower,
-            q_upper=self.upper, foot_contact=c.foot_contact, body_contact=c.group_contact.any(axis=1),
-            knee_force_xy=c.knee_force_xy, base_xy=s.base_pos[:, :2], init_xy=self.task.start_xy, dt=CONTROL_DT,
-            base_height=self.task.signals.height, nominal_height=self.spec_robot.nominal_height,
-            action_prev2=self._actions[1], upper_body=self.upper_body,
-        )
-        if "head_height" in self.reward_cfg.weights:
-            inputs.head_height = self._head_heights()
-            inputs.nominal_head_height = self._nominal_head
-        total, terms = compute_rewards(inputs, self.reward_cfg)
-        alive = ~(self.task.backend.diverged | self.task.settle_diverged)
-        return np.where(alive, np.nan_to_num(total), 0.0), {k: np.where(alive, np.nan_to_num(v), 0.0) for k, v in terms.items()}
+        """The step's reward (N,) and weighted terms (`StepReward`, the trainer's), both 0 where diverged."""
+        total, terms, alive = self.step_reward(self.task, actions, self._actions[0], self._actions[1], self._qd_prev)
+        return total, {k: np.where(alive, np.nan_to_num(v), 0.0) for k, v in terms.items()}
 
     # -- episodes -------------------------------------------------------------------------------------------
 
@@ -197,27 +164,10 @@ class FallRecoveryVectorEnv(VectorEnv):
         self._qd_prev = self.task.state.qd.copy()
         zeros = np.zeros((self.num_envs, self.spec_robot.n_joints))
         self._actions = (zeros, zeros)  # a_{t-1}, a_{t-2}
-        if "head_height" in self.reward_cfg.weights and not hasattr(self, "_nominal_head"):
-            self._nominal_head = self._standing_head_height()
         if self._renderer is not None:
             for k in range(self.num_envs):
                 self._renderer.forget(k)
         return obs
-
-    def _standing_head_height(self) -> float:
-        """The head's height [m] with the robot standing in its default pose on flat ground."""
-        import pinocchio
-
-        from frbench.robots import ground_truth
-        from frbench.training.population import HEAD_FRAME, HEAD_OFFSET_M
-
-        robot = ground_truth.load(self.spec_robot)
-        data = robot.model.createData()
-        pinocchio.framesForwardKinematics(robot.model, data, ground_truth.configuration(
-            robot, np.array([0.0, 0.0, self.spec_robot.nominal_height]), np.array([1.0, 0.0, 0.0, 0.0]),
-            self.default_pose))
-        frame = data.oMf[robot.model.getFrameId(HEAD_FRAME)]
-        return float((frame.translation + frame.rotation[:, 2] * HEAD_OFFSET_M)[2])
 
     def _success_info(self) -> dict:
         tracker, signals = self.task.success, self.task.signals

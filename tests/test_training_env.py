@@ -127,9 +127,9 @@ def test_a_resumed_run_can_start_a_reward_stage_with_the_papers_motion_penalties
     staged = TrainingRun(tmp_path / "run", total_steps=4 * 24 * 2, resume=True, checkpoint_every=1,
                          command="frbench train --resume run --motion-penalties 1", reward_stage=changes)
     for term in ("joint_velocity", "joint_acceleration", "joint_torques"):
-        assert staged.env.reward_cfg.weights[term] == PAPER_WEIGHTS[term]
-    assert staged.env.reward_cfg.weights["action_smoothing"] == -0.1
-    assert staged.env.reward_cfg.weights["safety_force"] == pytest.approx(0.1 * PAPER_WEIGHTS["safety_force"])
+        assert staged.env.reward.config.weights[term] == PAPER_WEIGHTS[term]
+    assert staged.env.reward.config.weights["action_smoothing"] == -0.1
+    assert staged.env.reward.config.weights["safety_force"] == pytest.approx(0.1 * PAPER_WEIGHTS["safety_force"])
     assert staged.env_steps == 96
     staged.train(progress_bar=False)
     config = json.loads((tmp_path / "run" / "config.json").read_text())
@@ -139,7 +139,7 @@ def test_a_resumed_run_can_start_a_reward_stage_with_the_papers_motion_penalties
     data = torch.load(tmp_path / "run" / "policy.pt", weights_only=True)
     assert json.loads(data["config_json"])["stages"][0]["from_env_steps"] == 96
     again = TrainingRun(tmp_path / "run", resume=True)
-    assert again.env.reward_cfg.weights["joint_velocity"] == PAPER_WEIGHTS["joint_velocity"]
+    assert again.env.reward.config.weights["joint_velocity"] == PAPER_WEIGHTS["joint_velocity"]
     with pytest.raises(FrbenchError, match="expected a scale >= 0"):
         reward_weight_changes(-1.0, [])
     with pytest.raises(FrbenchError, match="expected TERM=WEIGHT, e.g. action_smoothing=-0.1"):
@@ -226,10 +226,10 @@ def test_a_humanoid_residual_policy_trains_and_adds_its_action_to_the_base_contr
     assert obs["policy"].shape == (2, 6 + 3 * 29) and obs["history"].shape == (2, 5 * (6 + 3 * 29))
     run.train(progress_bar=False)
     assert run.env_steps == 48
-    logged = run.env.reward_cfg.weights
+    logged = run.env.reward.config.weights
     assert {"head_height", "feet_on_ground", "upper_body_posture", "action_jerk"} <= set(logged)
     assert "feet_contact" not in logged
-    assert 1.1 < run.env.robots.nominal_head_height < 1.35  # the G1's head centre stands about 1.23 m high
+    assert 1.1 < run.env.robots.head.standing_height < 1.35  # the G1's head centre stands about 1.23 m high
 
     spec = get_robot("g1")
     policy = load_policy(str(tmp_path / "g1"))

@@ -51,7 +51,7 @@ from frbench.training.height_raster import HeightRaster
 from frbench.training.observation_groups import observation_groups
 from frbench.training.population import TrainingRobots, yaw_of
 from frbench.training.residual import DirectTargets, ResidualController
-from frbench.training.rewards import RewardInputs, compute_rewards, with_joint_velocity_limits
+from frbench.training.step_reward import StepReward
 from frbench.training.start_sources import DemoStarts, RiseStarts
 from frbench.training.terrain_grid import build_grid
 
@@ -87,7 +87,8 @@ class RecoveryTrainingEnv(VecEnv):
                                  nominal_height=self.robots.nominal_height, track_metrics=False,
                                  surface_rules=False)
         self.backend = backend
-        self.reward_cfg = with_joint_velocity_limits(cfg.reward, self.spec.urdf_path, self.spec.joint_names)
+        self.reward = StepReward(cfg.reward, self.spec, self.robots.nominal_height, self._ground_height,
+                                 self.robots.head)
         self.assist = AssistForce(cfg.assist_force, cfg.assist_until, self.robots.env_masses)
         self.demo = DemoStarts(cfg.demo_start_fraction, cfg.demo_start_until, cfg.demo_refresh_episodes,
                                cfg.demo_steps, cfg.demo_stride)
@@ -167,7 +168,6 @@ class RecoveryTrainingEnv(VecEnv):
         """Start environments ``ids`` from recorded ``state`` (len(ids) rows) on their recorded ``tiles``."""
         self.task.restart(ids, state)
         self.tile_row[ids] = tiles
-        self.qd_prev = self.task.state.qd.copy()  # the first step's joint acceleration starts from the recorded state
 
     def _fresh_starts(self) -> None:
         """Fallen starts on every environment's curriculum tile, settled for ``settle_steps`` by the engine."""
@@ -185,7 +185,6 @@ class RecoveryTrainingEnv(VecEnv):
         self.assist.clear(self.backend)
         self.task.reset(FallenStarts(pos, quat, q, kinds), params, self.cfg_obj.settle_steps)
         self.assist.apply(self.backend, self.env_steps)
-        self.qd_prev = self.task.state.qd.copy()
         self.episode_length_buf.zero_()
 
     # ------------------------------------------------------------------ observations
@@ -243,24 +242,9 @@ class RecoveryTrainingEnv(VecEnv):
         (name → (N,)); returns (reward, terms, alive (N,) bool)."""
         task, action = self.task, self.actions.current
         targets = self.targets_of.targets(task.state, action)
-        self.qd_prev = task.state.qd
+        qd_prev = task.state.qd
         task.advance(targets)
-        s, c = task.state, task.contacts
-        inputs = RewardInputs(
-            projected_gravity=task.gravity, q=s.q, qd=s.qd, qd_prev=self.qd_prev, tau=s.tau, action=action,
-            action_prev=action_prev, q_stand=self.default_pose, q_lower=task.lower, q_upper=task.upper,
-            foot_contact=c.foot_contact, body_contact=task.signals.body_contact, knee_force_xy=c.knee_force_xy,
-            base_xy=s.base_pos[:, :2], init_xy=task.start_xy, base_height=task.signals.height,
-            nominal_height=self.robots.nominal_height, action_prev2=action_prev2, upper_body=self.robots.upper_body,
-        )
-        if self.robots.humanoid:
-            head = self.robots.head_positions(s)
-            inputs.head_height = head[:, 2] - self._ground_height(head[:, :2])
-            inputs.nominal_head_height = self.robots.nominal_head_height
-        reward, terms = compute_rewards(inputs, self.reward_cfg)
-        alive = task.alive
-        if not (alive.all() and np.isfinite(reward).all()):  # else the reward stays as it is
-            reward = np.where(alive, np.nan_to_num(reward), 0.0)
+        reward, terms, alive = self.reward(task, action, action_prev, action_prev2, qd_prev)
         self.env_steps += self.num_envs
         return reward, terms, alive
 

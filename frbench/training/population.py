@@ -8,7 +8,7 @@ payload are drawn once (the backend compiles them in); per episode the gains,
 motor strength and motor friction are redrawn (`episode_params`).
 
 Ground truth from Pinocchio: group masses (the estimator's labels, payload on
-the base), the whole-body CoM and, for humanoids, the head position.
+the base), the whole-body CoM and, for humanoids, the head position (`step_reward.HeadPoints`).
 Shapes: N environments, J joints, G mass groups.
 """
 
@@ -22,14 +22,10 @@ from frbench.backends.base import PhysicsParams, RobotState
 from frbench.robots import get_robot, ground_truth
 from frbench.training.feasibility import can_stand
 from frbench.training.randomization import CONTROL_RANGES, morphology_spec, sample_morphologies, sample_physics
+from frbench.training.step_reward import HeadPoints
 
 #: A named robot's own per-joint Kp and Kd are multiplied by one factor per episode drawn from this range.
 NAMED_ROBOT_GAIN_FACTORS = (0.9, 1.1)
-#: The humanoid's "head": a point this far [m] above the torso link's origin along its z axis (the G1's head
-#: centre stands about 1.23 m above flat ground in the default pose).
-HEAD_FRAME, HEAD_OFFSET_M = "torso_link", 0.40
-#: Joint-name fragments of a humanoid's legs; every other joint belongs to the upper body (waist, arms).
-LEG_JOINT_WORDS = ("hip", "knee", "ankle")
 
 
 def yaw_of(quat: np.ndarray) -> np.ndarray:
@@ -43,8 +39,8 @@ class TrainingRobots:
 
     Attributes: ``specs`` (K robots), ``spec`` (the first: joint order, limits, default pose), ``assignment``
     (N,) index into ``specs``, ``variants`` (the backend's per-simulation robots, or None), ``env_masses``
-    (N, G) [kg], ``env_friction`` (N,), ``env_payload`` (N,) [kg], ``nominal_height`` (N,) [m],
-    ``upper_body`` (J,) bool, ``nominal_head_height`` [m] (humanoids); with sampled morphologies also
+    (N, G) [kg], ``env_friction`` (N,), ``env_payload`` (N,) [kg], ``nominal_height`` (N,) [m], ``head``
+    (humanoids: their head points, else None); with sampled morphologies also
     ``morphologies`` and ``rejected`` (redrawn ones).
     """
 
@@ -69,13 +65,9 @@ class TrainingRobots:
         self.env_friction = self.variant_friction[self.assignment]
         self.env_payload = self.variant_payload[self.assignment]
         self.nominal_height = np.array([s.nominal_height for s in specs])[self.assignment]
-        self._pin = [ground_truth.load(s) for s in specs]
-        self._pin_data = [p.model.createData() for p in self._pin]
         self.humanoid = self.spec.kind == "humanoid"
-        self.upper_body = np.array([not any(w in name for w in LEG_JOINT_WORDS) for name in self.spec.joint_names])
-        if self.humanoid:
-            standing = RobotState.standing(self.spec, 1, clearance=0.0)
-            self.nominal_head_height = float(self.head_positions(standing, [0])[0, 2])
+        #: The humanoid's head points (`step_reward.HeadPoints`); None for quadrupeds.
+        self.head = HeadPoints(specs, self.assignment) if self.humanoid else None
 
     def _feasible_morphologies(self) -> list:
         """``num_morphologies`` sampled robots (CoM shift applied when randomising) that can stand at the lowest
@@ -134,18 +126,3 @@ class TrainingRobots:
         yaw = yaw_of(s.base_quat)
         c, si = np.cos(yaw), np.sin(yaw)
         return np.stack([c * delta[:, 0] + si * delta[:, 1], -si * delta[:, 0] + c * delta[:, 1]], axis=1)
-
-    def head_positions(self, state: RobotState, rows=None) -> np.ndarray:
-        """World head positions (M, 3) [m] of the robots in ``rows`` (default all; ``state`` has M rows), by Pinocchio."""
-        import pinocchio
-
-        rows = range(len(self.assignment)) if rows is None else rows
-        out = np.zeros((len(state.base_pos), 3))
-        for m, i in enumerate(rows):
-            robot = self._pin[self.assignment[i]]
-            data = self._pin_data[self.assignment[i]]
-            config = ground_truth.configuration(robot, state.base_pos[m], state.base_quat[m], state.q[m])
-            pinocchio.framesForwardKinematics(robot.model, data, config)
-            frame = data.oMf[robot.model.getFrameId(HEAD_FRAME)]
-            out[m] = frame.translation + frame.rotation[:, 2] * HEAD_OFFSET_M
-        return out
