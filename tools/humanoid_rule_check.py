@@ -17,11 +17,10 @@ import argparse
 
 import numpy as np
 
-from frbench.policies.base import checked_actions
+from frbench.evaluation.episodes import run_episodes
 from frbench.policies.registry import load_policy
 from frbench.robots import get_robot
 from frbench.tasks.initial_states import draw_starts
-from frbench.tasks.recovery import EPISODE_STEPS, RecoveryTask
 from frbench.tasks.success import HUMANOID_REFERENCE_HEIGHT, MAX_DISPLACEMENT
 from frbench.terrains import make_terrain
 
@@ -53,17 +52,13 @@ def run(policy_name: str, backend: str, family: str, level: int, seed: int, epis
     starts = draw_starts(spec, terrain, family, level, seed, range(episodes), protocol_version="1.0")
     starts.cell = None  # protocol 1.0 had no start screening
     policy = load_policy(policy_name)
-    task = RecoveryTask(spec, backend, terrain, episodes)
-    try:
-        obs = task.reset(starts)
-        policy.reset(spec, episodes)
-        host = HostRule(episodes, spec.nominal_height)
-        for _ in range(EPISODE_STEPS):
-            obs = task.step(checked_actions(policy, policy.act(obs), episodes, spec.n_joints))
-            alive = ~(task.backend.diverged | task.settle_diverged)
-            host.update(task.signals.height, task.signals.displacement, alive)
-    finally:
-        task.close()
+    host = HostRule(episodes, spec.nominal_height)
+
+    def record(task, _targets):
+        host.update(task.signals.height, task.signals.displacement, task.alive)
+
+    task = run_episodes(spec, backend, terrain, starts, policy, seed=seed, on_step=record)
+    alive = task.alive
     return host.success & alive, task.success.success & alive
 
 

@@ -37,37 +37,36 @@ def record_crouch_states(backend: str, seeds, params: str | None = None, episode
                          min_height: float = MIN_CROUCH_HEIGHT) -> dict[str, np.ndarray]:
     """Crouch-entry states of the key frames from g1/flat/level-1 ``seeds`` × ``episodes``: arrays by field,
     one row per state (`STATE_FIELDS` plus ``targets`` (J,) [rad], ``seed``, ``step`` [control steps])."""
+    from frbench.evaluation.episodes import run_episodes
     from frbench.policies.keyframe_humanoid import (
         KeyframeHumanoidPolicy,
         load_parameters,
     )
     from frbench.robots import get_robot
     from frbench.tasks.initial_states import draw_starts
-    from frbench.tasks.recovery import EPISODE_STEPS, RecoveryTask
     from frbench.terrains import make_terrain
 
     spec = get_robot("g1")
     rows: dict[str, list] = {k: [] for k in (*STATE_FIELDS, "targets", "seed", "step")}
     for seed in seeds:
         terrain = make_terrain("flat", 1, seed)
-        task = RecoveryTask(spec, backend, terrain, episodes)
-        try:
-            obs = task.reset(draw_starts(spec, terrain, "flat", 1, seed, range(episodes)))
-            policy = KeyframeHumanoidPolicy(None if params is None else load_parameters(params))
-            policy.reset(spec, episodes)
-            opened = np.zeros(episodes, dtype=bool)
-            for step in range(EPISODE_STEPS):
-                obs = task.step(policy.act(obs))
-                new = (policy.residual_gate() > 0) & ~opened & ~task.backend.diverged
-                for i in np.flatnonzero(new & (task.state.base_pos[:, 2] >= min_height)):
-                    for field in STATE_FIELDS:
-                        rows[field].append(getattr(task.state, field)[i].copy())
-                    rows["targets"].append(policy.target[i].copy())
-                    rows["seed"].append(seed)
-                    rows["step"].append(step)
-                opened |= new
-        finally:
-            task.close()
+        policy = KeyframeHumanoidPolicy(None if params is None else load_parameters(params))
+        opened = np.zeros(episodes, dtype=bool)
+
+        def record(task, _targets):
+            nonlocal opened
+            step = task.t - 1
+            new = (policy.residual_gate() > 0) & ~opened & task.alive
+            for i in np.flatnonzero(new & (task.state.base_pos[:, 2] >= min_height)):
+                for field in STATE_FIELDS:
+                    rows[field].append(getattr(task.state, field)[i].copy())
+                rows["targets"].append(policy.target[i].copy())
+                rows["seed"].append(seed)
+                rows["step"].append(step)
+            opened |= new
+
+        run_episodes(spec, backend, terrain, draw_starts(spec, terrain, "flat", 1, seed, range(episodes)), policy,
+                     seed=seed, on_step=record, check=False)
     if not rows["q"]:
         raise ValueError(f"no key-frame episode of seeds {list(seeds)} ({backend}) reached the crouch")
     return {k: np.array(v) for k, v in rows.items()}

@@ -31,10 +31,10 @@ def _estimates(policy) -> tuple[np.ndarray, np.ndarray]:
 
 def evaluate_mcp(policy_path: str, specs, episodes: int = 8, backend: str = "mujoco", seed: int = 0) -> dict:
     """Per robot: mean |mass error| per group [kg] and contact accuracy per group, plus one episode's traces."""
+    from frbench.evaluation.episodes import run_episodes
     from frbench.policies.registry import load_policy
     from frbench.robots import ground_truth
     from frbench.tasks.initial_states import draw_starts
-    from frbench.tasks.recovery import EPISODE_STEPS, RecoveryTask
     from frbench.terrains import make_terrain
 
     policy = load_policy(policy_path)
@@ -45,22 +45,20 @@ def evaluate_mcp(policy_path: str, specs, episodes: int = 8, backend: str = "muj
     for spec in specs:
         truth = ground_truth.group_masses(spec)
         starts = draw_starts(spec, terrain, "flat", 1, seed, range(episodes))
-        task = RecoveryTask(spec, backend, terrain, episodes)
-        obs = task.reset(starts)
-        policy.reset(spec, episodes)
         mass_err, hits, counts, trace = [], np.zeros(13), 0, {"mass_error": [], "contact_prob": [], "contact_true": []}
-        for _ in range(EPISODE_STEPS):
-            targets = policy.act(obs)
-            masses, contact_prob = _estimates(policy)
-            obs = task.step(targets)
-            labels = task.backend.contacts().group_contact
+
+        def record(task, _targets):
+            nonlocal hits, counts
+            masses, contact_prob = _estimates(policy)  # the estimator's output of the action just taken
+            labels = task.contacts.group_contact
             mass_err.append(np.abs(masses - truth))
             hits += ((contact_prob > 0.5) == labels).sum(axis=0)
             counts += len(labels)
             trace["mass_error"].append((masses[0] - truth) / truth)
             trace["contact_prob"].append(contact_prob[0])
             trace["contact_true"].append(labels[0].astype(float))
-        task.close()
+
+        task = run_episodes(spec, backend, terrain, starts, policy, seed=seed, on_step=record)
         mass_err = np.concatenate(mass_err)
         report[spec.name] = {
             "true_mass_kg": dict(zip(QUADRUPED_MASS_GROUPS, truth.round(3).tolist())),

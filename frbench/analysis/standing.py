@@ -63,10 +63,10 @@ class StandingTally:
 def standing_analysis(policy_reference: str, robot: str, backends=("mujoco", "pybullet"), terrain: str = "flat",
                       level: int = 1, seeds=(0, 1), episodes: int = 8) -> dict[str, dict]:
     """Per backend, the `StandingTally` summary of ``episodes`` × ``seeds`` episodes of one cell."""
+    from frbench.evaluation.episodes import run_episodes
     from frbench.policies.registry import load_policy
     from frbench.robots import get_robot
     from frbench.tasks.initial_states import draw_starts
-    from frbench.tasks.recovery import EPISODE_STEPS, RecoveryTask
     from frbench.terrains import make_terrain
 
     spec = get_robot(robot)
@@ -78,20 +78,17 @@ def standing_analysis(policy_reference: str, robot: str, backends=("mujoco", "py
         for seed in seeds:
             world = make_terrain(terrain, level, seed)
             starts = draw_starts(spec, world, terrain, level, seed, range(episodes))
-            task = RecoveryTask(spec, backend, world, episodes)
-            try:
-                obs, previous = task.reset(starts), None
-                policy.reset(spec, episodes)
-                for _ in range(EPISODE_STEPS):
-                    targets = policy.act(obs)
-                    obs = task.step(targets)
-                    change = None if previous is None else np.abs(targets - previous).mean(axis=1)
-                    tally.add_step(task.success.up_pose(task.signals), task.contacts.group_contact, change)
-                    previous = targets
-                tally.episodes += episodes
-                tally.successes += int(task.success.success.sum())
-            finally:
-                task.close()
+            previous = None
+
+            def record(task, targets):
+                nonlocal previous
+                change = None if previous is None else np.abs(targets - previous).mean(axis=1)
+                tally.add_step(task.success.up_pose(task.signals), task.contacts.group_contact, change)
+                previous = targets
+
+            task = run_episodes(spec, backend, world, starts, policy, seed=seed, on_step=record)
+            tally.episodes += episodes
+            tally.successes += int(task.success.success.sum())
         report[backend] = tally.summary()
     return report
 

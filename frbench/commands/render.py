@@ -71,27 +71,20 @@ def run(args) -> int:
 def record_episode(policy, args):
     """Run one protocol episode of ``policy``; returns (spec, `Trajectory`, a one-phrase outcome)."""
     from frbench.backends.base import CONTROL_DT
-    from frbench.policies.base import checked_actions
+    from frbench.evaluation.episodes import run_episodes
     from frbench.render import Trajectory
     from frbench.robots import get_robot
     from frbench.tasks.initial_states import draw_starts
-    from frbench.tasks.recovery import EPISODE_STEPS, RecoveryTask
     from frbench.terrains import make_terrain
 
     spec = get_robot(args.robot)
     terrain = make_terrain(args.terrain, args.level, args.seed)
     starts = draw_starts(spec, terrain, args.terrain, args.level, args.seed, [args.episode])
-    task = RecoveryTask(spec, args.backend, terrain, 1)
     trajectory = Trajectory()
-    try:
-        obs = task.reset(starts)
-        policy.reset(spec, 1)
-        trajectory.add(task.state)
-        for _ in range(EPISODE_STEPS):
-            obs = task.step(checked_actions(policy, policy.act(obs), 1, spec.n_joints))
-            trajectory.add(task.state, time=task.t * CONTROL_DT, recovered=bool(task.success.success[0]))
-    finally:
-        task.close()
+    task = run_episodes(spec, args.backend, terrain, starts, policy, seed=args.seed,
+                        on_reset=lambda task: trajectory.add(task.state),
+                        on_step=lambda task, _: trajectory.add(task.state, time=task.t * CONTROL_DT,
+                                                               recovered=bool(task.success.success[0])))
     recovered_at = task.success.time_to_recover[0]
     outcome = (f"{starts.kinds[0]} start, {args.backend}: "
                + (f"recovered at t = {recovered_at:.2f} s" if task.success.success[0] else "did not recover"))

@@ -13,8 +13,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from frbench.policies.base import checked_actions
-from frbench.tasks.recovery import EPISODE_STEPS, RecoveryTask
+from frbench.evaluation.episodes import run_episodes
 
 
 @dataclass(frozen=True)
@@ -54,7 +53,7 @@ def _one_torch_thread() -> None:
 
 
 def run_cell(cell: Cell, policy_reference: str, noise: bool = False) -> list[dict]:
-    """Run the cell's episodes with the policy; one record per episode."""
+    """Run the cell's episodes with the policy (`run_episodes`); one record per episode."""
     from frbench.robots import get_robot
     from frbench.tasks.initial_states import draw_starts
     from frbench.terrains import make_terrain
@@ -65,22 +64,7 @@ def run_cell(cell: Cell, policy_reference: str, noise: bool = False) -> list[dic
     terrain = make_terrain(cell.terrain, cell.level, cell.seed)
     starts = draw_starts(spec, terrain, cell.terrain, cell.level, cell.seed, range(cell.episodes))
     noise_rng = np.random.default_rng([cell.seed, cell.level, 7]) if noise else None
-    task = RecoveryTask(spec, cell.backend, terrain, cell.episodes, noise_rng=noise_rng)
-    try:
-        obs = task.reset(starts)
-        policy.reset(spec, cell.episodes)
-        # A policy that declares ``uses_simulator_state`` (the `mpc` planner, not a blind policy; its results
-        # say so) gets the cell's terrain and seed, then the simulator's `RobotState` before every action.
-        privileged = getattr(policy, "uses_simulator_state", False)
-        if privileged:
-            policy.reset_episode(terrain, cell.seed)
-        for _ in range(EPISODE_STEPS):
-            if privileged:
-                policy.observe_state(task.state)
-            actions = checked_actions(policy, policy.act(obs), cell.episodes, spec.n_joints)
-            obs = task.step(actions)
-    finally:
-        task.close()
+    task = run_episodes(spec, cell.backend, terrain, starts, policy, seed=cell.seed, noise_rng=noise_rng)
     success, metrics = task.success, task.metrics
     diverged = metrics.diverged | task.settle_diverged
     base = {k: v for k, v in asdict(cell).items() if k != "episodes"}

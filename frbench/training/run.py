@@ -141,6 +141,7 @@ class TrainingRun:
             if not config_path.is_file():
                 raise FrbenchError(f"--resume {self.out}: no {CONFIG_FILE} there; is it a training run folder?")
             config = json.loads(config_path.read_text())
+            written = json.loads(json.dumps(config))
             distributed.check_resume_processes(config.get("processes", 1), self.out)
             method, env_cfg = config["method"], env_cfg_from_dict(config["env"], str(config_path))
             total_steps = total_steps or config["total_steps"]
@@ -163,9 +164,6 @@ class TrainingRun:
             if ranks.world_size > 1:
                 config["processes"] = ranks.world_size
             distributed.barrier()  # every rank has checked that the folder is free before rank 0 writes
-            if ranks.is_main:
-                self.out.mkdir(parents=True, exist_ok=True)
-                atomic_write_text(self.out / CONFIG_FILE, json.dumps(config, indent=1) + "\n")
         self.config, self.method, self.total_steps = config, method, int(total_steps)
         self.checkpoint_every = checkpoint_every
         seed = distributed.rank_seed(env_cfg.seed, ranks.rank)  # each rank its own environments and draws
@@ -175,8 +173,9 @@ class TrainingRun:
                                     self.env.env_masses[0])
         if sized != train_cfg:  # e.g. the G1: 3 mass groups and 10 contact groups instead of 4 and 13
             train_cfg = config["train_cfg"] = sized
-            if ranks.is_main:
-                atomic_write_text(self.out / CONFIG_FILE, json.dumps(config, indent=1) + "\n")
+        if ranks.is_main and (not resume or config != written):  # once, complete: a new run, a new stage, a resize
+            self.out.mkdir(parents=True, exist_ok=True)
+            atomic_write_text(self.out / CONFIG_FILE, json.dumps(config, indent=1) + "\n")
         self.runner = distributed.runner_class()(self.env, json.loads(json.dumps(train_cfg)), log_dir=str(self.out),
                                                  device=distributed.training_device())
         # control steps per iteration, summed over the ranks: each decision holds its action for `action_hold` steps
@@ -195,7 +194,7 @@ class TrainingRun:
     def _new_stage(self, config: dict, env_cfg, weights: dict[str, float], morphology: dict, command: str,
                    backend: str | None = None):
         """The env config with the reward ``weights``, ``morphology`` ranges and ``backend`` (None: unchanged)
-        changed; records the stage in ``config`` and rewrites config.json (see ``__init__``)."""
+        changed; records the stage in ``config`` (``__init__`` writes config.json)."""
         import torch
 
         from frbench.robots.morphology import morphology_ranges
@@ -217,8 +216,6 @@ class TrainingRun:
         if morphology:
             stage["morphology_ranges"] = {k: list(map(float, v)) for k, v in morphology.items()}
         config.setdefault("stages", []).append(stage)
-        if self.ranks.is_main:
-            atomic_write_text(self.out / CONFIG_FILE, json.dumps(config, indent=1) + "\n")
         return env_cfg
 
     def _load_state(self) -> None:

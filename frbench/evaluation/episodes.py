@@ -1,0 +1,57 @@
+"""The episode runner: one batch of protocol episodes of a policy, the one loop that evaluation, rendering, the
+analyses and the tools share.
+
+`run_episodes` builds the episode engine (`frbench.tasks.recovery.RecoveryTask`) for the starts, resets it and
+the policy, then for every control step asks the policy for joint targets, checks them (`checked_actions`:
+shape (N, J), finite; a one-line `PolicyError` otherwise) and steps the engine; it closes the simulator
+whatever happens. What callers need beyond the outcome comes in as callbacks:
+
+* ``on_reset(task)`` once after the reset (e.g. the first frame of a video);
+* ``on_step(task, targets)`` after each step, with the checked targets (N, J) [rad] just applied (frames,
+  per-step records, estimator traces); returning `STOP` ends the episodes early.
+
+A policy that declares ``uses_simulator_state`` (a planner such as ``mpc``, not a blind policy) gets the
+terrain and seed (``reset_episode``) and the simulator's `RobotState` before every action (``observe_state``).
+The returned task is closed; its ``success``, ``metrics``, ``state`` and ``starts`` stay readable.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+from frbench.policies.base import checked_actions
+from frbench.tasks.recovery import EPISODE_STEPS, RecoveryTask
+
+#: Returned by ``on_step`` to end the episodes before their last step.
+STOP = "stop"
+
+
+def run_episodes(spec, backend, terrain, starts, policy, *, seed: int = 0, steps: int = EPISODE_STEPS,
+                 noise_rng=None, on_reset: Callable | None = None, on_step: Callable | None = None,
+                 check: bool = True) -> RecoveryTask:
+    """Run ``len(starts)`` episodes of ``policy`` on ``spec`` in ``backend`` (a name or a `Backend`) over
+    ``terrain`` for ``steps`` control steps (see the module docstring); ``seed`` is the terrain's, passed to a
+    policy that plans on the simulator. ``check=False`` skips the action check (a tool's own trusted
+    controller)."""
+    n = len(starts.kinds)
+    task = RecoveryTask(spec, backend, terrain, n, noise_rng=noise_rng)
+    try:
+        obs = task.reset(starts)
+        policy.reset(spec, n)
+        privileged = getattr(policy, "uses_simulator_state", False)
+        if privileged:
+            policy.reset_episode(terrain, seed)
+        if on_reset is not None:
+            on_reset(task)
+        for _ in range(steps):
+            if privileged:
+                policy.observe_state(task.state)
+            targets = policy.act(obs)
+            if check:
+                targets = checked_actions(policy, targets, n, spec.n_joints)
+            obs = task.step(targets)
+            if on_step is not None and on_step(task, targets) is STOP:
+                break
+    finally:
+        task.close()
+    return task

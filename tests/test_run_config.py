@@ -1,0 +1,34 @@
+"""A training run writes its config.json once, complete (estimator sizing included), and resumes without rewriting."""
+
+import json
+
+from frbench.training import run as run_module
+from frbench.training.config import TrainEnvConfig
+from frbench.training.run import CONFIG_FILE, TrainingRun
+
+
+def _count_config_writes(monkeypatch) -> list:
+    writes = []
+    original = run_module.atomic_write_text
+
+    def counting(path, text):
+        if path.name == CONFIG_FILE:
+            writes.append(json.loads(text))
+        return original(path, text)
+
+    monkeypatch.setattr(run_module, "atomic_write_text", counting)
+    return writes
+
+
+def test_config_json_is_written_once_per_run_and_not_again_on_resume(tmp_path, monkeypatch):
+    writes = _count_config_writes(monkeypatch)
+    cfg = TrainEnvConfig(num_envs=2, robot="g1", randomize=False, families=("flat",), episode_steps=3, settle_steps=2)
+    run = TrainingRun(tmp_path / "g1", "frnet", cfg, total_steps=2 * 24, checkpoint_every=1)
+    assert len(writes) == 1
+    estimator = writes[0]["train_cfg"]["actor"]["estimator"]
+    assert (estimator["num_masses"], estimator["num_contacts"]) == (3, 10)  # the G1's groups, sized before writing
+    run.train(progress_bar=False)
+    TrainingRun(tmp_path / "g1", resume=True, total_steps=3 * 24)
+    assert len(writes) == 1
+    TrainingRun(tmp_path / "g1", resume=True, reward_stage={"action_smoothing": -0.2}, command="stage")
+    assert len(writes) == 2 and writes[1]["stages"][0]["weights"] == {"action_smoothing": -0.2}
