@@ -154,6 +154,7 @@ def build_results(request: EvaluationRequest, policy, episodes: list[dict]) -> d
             "name": policy.name,
             "checkpoint": str(checkpoint) if checkpoint else None,
             "sha256": sha256_file(checkpoint) if checkpoint else None,
+            **({"inputs": policy.inputs} if getattr(policy, "inputs", None) else {}),
         },
         "config": config,
         "robots": robots,

@@ -25,6 +25,7 @@ BUILTIN_POLICIES = {
     "scripted": "frbench.policies.scripted:ScriptedPolicy",
     "scripted-humanoid": "frbench.policies.scripted_humanoid:HumanoidScriptedPolicy",
     "keyframe-humanoid": "frbench.policies.keyframe_humanoid:KeyframeHumanoidPolicy",
+    "mpc": "frbench.policies.mpc:MpcPolicy",
 }
 
 
