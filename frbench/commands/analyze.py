@@ -1,7 +1,8 @@
 """``frbench analyze-mcp`` (the Mass-Contact Predictor's mass errors and contact accuracy on unseen robots),
 ``frbench analyze-stand`` (body contacts and fidgeting while a policy is up), ``frbench analyze-training-env`` (a
 run's deterministic policy against zero actions in its own training env, per simulator), ``frbench plot-results``
-(success against level per terrain family, from results files) and ``frbench compare`` (methods side by
+(success against level per terrain family, from results files), ``frbench plot-training`` (training runs' success
+against env steps, from their learning curves) and ``frbench compare`` (methods side by
 side, from results files)."""
 
 from __future__ import annotations
@@ -55,6 +56,32 @@ def register(sub: argparse._SubParsersAction) -> None:
     q.add_argument("--out", type=Path, required=True, help="folder for success_<family>.png and success.md")
     q.add_argument("--title", default="", help="figure title")
     q.set_defaults(func=run_plots)
+
+    g = sub.add_parser("plot-training", help="training success against env steps of several runs or seeds in one "
+                                             "PNG (each run's curve is also in its curve.csv)")
+    g.add_argument("runs", nargs="+", type=Path, help="training run folders (frbench train --out)")
+    g.add_argument("--out", type=Path, required=True, help="the PNG to write")
+    g.add_argument("--metrics", default="success_flat,success_all",
+                   help="comma-separated columns of the runs' curves, one panel each (e.g. success_stairs, "
+                        "loss_surrogate)")
+    g.set_defaults(func=run_plot_training)
+
+
+def run_plot_training(args) -> int:
+    """Draw the runs' curves in one PNG."""
+    from frbench.errors import FrbenchError
+    from frbench.io import check_output_path
+    from frbench.training.curves import plot_training, read_progress
+
+    check_output_path(args.out, suffixes=(".png",))
+    metrics = tuple(m.strip() for m in args.metrics.split(",") if m.strip())
+    known = {key for run in args.runs for row in read_progress(run) for key in row}
+    unknown = [m for m in metrics if m not in known]
+    if not metrics or unknown:
+        raise FrbenchError(f"--metrics {args.metrics!r}: expected columns of the runs' curves, e.g. "
+                           f"{', '.join(sorted(k for k in known if k.startswith('success'))[:4])}")
+    print(f"wrote {plot_training(args.runs, args.out, metrics)}")
+    return 0
 
 
 def run_standing(args) -> int:

@@ -34,8 +34,9 @@ import numpy as np
 from frbench.errors import FrbenchError
 from frbench.io import atomic_write_text
 from frbench.policies.checkpoint import CHECKPOINT_FORMAT
+from frbench.training.curves import PROGRESS_FILE, LossLog, plot_training, write_curve_csv
 
-RUNNER_FILE, STATE_FILE, POLICY_FILE, CONFIG_FILE, PROGRESS_FILE = "runner.pt", "state.pt", "policy.pt", "config.json", "progress.json"
+RUNNER_FILE, STATE_FILE, POLICY_FILE, CONFIG_FILE = "runner.pt", "state.pt", "policy.pt", "config.json"
 SNAPSHOT_DIR = "snapshots"
 #: Env steps between policy snapshots.
 SNAPSHOT_EVERY_STEPS = 1_000_000
@@ -178,6 +179,8 @@ class TrainingRun:
             atomic_write_text(self.out / CONFIG_FILE, json.dumps(config, indent=1) + "\n")
         self.runner = distributed.runner_class()(self.env, json.loads(json.dumps(train_cfg)), log_dir=str(self.out),
                                                  device=distributed.training_device())
+        self.losses = LossLog()  # the updates' losses in each logging window, for the learning curve
+        logging_updates(self.runner.alg, self.losses)
         # control steps per iteration, summed over the ranks: each decision holds its action for `action_hold` steps
         self.steps_per_iteration = (self.env.num_envs * train_cfg["num_steps_per_env"] * self.env.cfg_obj.action_hold
                                     * ranks.world_size)
@@ -251,6 +254,7 @@ class TrainingRun:
                                              self.env.num_actions, self.env.spec.kind),
                            self.out / POLICY_FILE)
         atomic_write_text(self.out / PROGRESS_FILE, json.dumps(self.progress, indent=1) + "\n")
+        write_curve_csv(self.progress, self.out)
         self._snapshot()
         for old in self.out.glob("model_*.pt"):  # rsl-rl's own per-call saves; runner.pt supersedes them
             old.unlink(missing_ok=True)
@@ -290,13 +294,25 @@ class TrainingRun:
             if self.ranks.world_size > 1:
                 self.env.env_steps = self.env_steps  # schedules (demo starts, assist force) follow the run's steps
             self.progress.append({"iteration": self.iteration, "env_steps": self.env_steps, "wall_s": round(self.wall, 1),
-                                  **stats})
+                                  **stats, **self.losses.means()})
             self.save()
             bar.update(chunk)
             bar.set_postfix(steps=f"{self.env_steps / 1e6:.2f}M", success=stats.get("success_flat"))
         bar.close()
         if self.ranks.is_main:
-            draw_curve(self.progress, self.out / "curve.png", title=f"{self.method} ({self.out.name})")
+            plot_training([self.out], self.out / "curve.png", labels=[f"{self.method} ({self.out.name})"])
+
+
+def logging_updates(algorithm, log: LossLog) -> None:
+    """Make every ``algorithm.update()`` (rsl-rl's: it returns a dict of mean losses) also add them to ``log``."""
+    update = algorithm.update
+
+    def update_and_log():
+        losses = update()
+        log.add(losses or {})
+        return losses
+
+    algorithm.update = update_and_log
 
 
 def zero_output_layer(actor) -> None:
@@ -329,31 +345,3 @@ def policy_checkpoint(method: str, config: dict, actor, iteration: int, env_step
         "env_steps": int(env_steps),
         "wall_s": float(wall),
     }
-
-
-def draw_curve(progress: list[dict], path: Path, title: str) -> None:
-    """Success rate (flat ground and all terrains) against env steps, as a PNG."""
-    if not progress:
-        return
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    steps = np.array([row["env_steps"] for row in progress]) / 1e6
-    fig, ax = plt.subplots(figsize=(6, 3.5), dpi=120)
-    for key, label in (("success_flat", "flat ground"), ("success_all", "all terrains")):
-        values = [row.get(key) for row in progress]
-        if any(v is not None for v in values):
-            ax.plot(steps, [np.nan if v is None else v for v in values], label=label)
-    ax.set_xlabel("env steps [M]")
-    ax.set_ylabel("training success rate")
-    ax.set_ylim(0, 1)
-    ax.grid(alpha=0.3)
-    ax.legend(loc="lower right")
-    ax.set_title(title)
-    fig.tight_layout()
-    tmp = path.with_name(f".{path.name}.tmp.png")
-    fig.savefig(tmp)
-    plt.close(fig)
-    os.replace(tmp, path)
