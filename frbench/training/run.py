@@ -29,7 +29,6 @@ import os
 import time
 from pathlib import Path
 
-import numpy as np
 
 from frbench.errors import FrbenchError
 from frbench.io import atomic_write_text
