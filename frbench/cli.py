@@ -28,6 +28,7 @@ COMMAND_MODULES = (
     "frbench.commands.train",
     "frbench.commands.analyze",
     "frbench.commands.export",
+    "frbench.commands.spec",
 )
 
 

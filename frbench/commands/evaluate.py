@@ -28,7 +28,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     d = EvaluationRequest()
     p = sub.add_parser("evaluate", help="score a recovery policy in MuJoCo and PyBullet",
                        description="With no arguments: the best shipped policy on Go2, both backends, every terrain.")
-    p.add_argument("--policy", default=d.policy, help=f"policy name, checkpoint file or run folder (default {d.policy})")
+    p.add_argument("--policy", default=d.policy, help=f"policy name, checkpoint file, run folder, ONNX or TorchScript "
+                   f"file, Stable-Baselines3 zip, module:attr or file.py:attr (see `frbench policies --help`; "
+                   f"default {d.policy})")
+    p.add_argument("--spec", default=None, help="a layout file (JSON, `frbench spec --json`) for an ONNX, TorchScript, "
+                   "Stable-Baselines3 or Python policy (default: its sidecar <file>.json, else frbench's layout)")
     p.add_argument("--robots", type=_list, default=d.robots, help="comma-separated robot names or URDF paths")
     p.add_argument("--backends", type=_list, default=d.backends, help="mujoco,pybullet")
     p.add_argument("--terrains", type=_list, default=d.terrains, help="terrain families (default: all seven)")
@@ -58,8 +62,10 @@ def run(args) -> int:
     from frbench.evaluation.results import aggregate_table, initial_pose_table, results_table
     from frbench.io import atomic_write_text, check_output_path
 
+    from frbench.policies.references import resolve_reference
+
     request = EvaluationRequest(
-        policy=args.policy, robots=args.robots, backends=args.backends, terrains=args.terrains,
+        policy=resolve_reference(args.policy, args.spec), robots=args.robots, backends=args.backends, terrains=args.terrains,
         levels=args.levels, seeds=args.seeds, episodes=args.episodes, noise=args.noise, jobs=args.jobs,
         executor=args.executor, address=args.address,
     )

@@ -10,9 +10,25 @@ import argparse
 import json
 
 
+#: What ``--policy`` accepts (``frbench policies --help``).
+POLICY_KINDS = """List the policies frbench ships and the installed plugins. `frbench evaluate --policy` also takes:
+
+  NAME                  a listed policy (built in, shipped checkpoint or plugin)
+  run/ or policy.pt     a checkpoint of `frbench train`
+  my.onnx               an ONNX network (onnxruntime), e.g. `frbench export`'s or a torch.onnx.export of your own
+  my.pt                 a TorchScript module (torch.jit.save)
+  model.zip             a Stable-Baselines3 model trained on frbench/FallRecovery-v1 (pip install 'frbench[sb3]')
+  module:attr           a Python policy: a class, object or function with act(obs) [and reset(info)]
+  path/to/file.py:attr  the same, from a file
+
+ONNX, TorchScript and Python policies read the observation layout of `frbench spec --robot NAME`, or the one in
+their sidecar <file>.json or `frbench evaluate --spec FILE`. See docs/own-policy.md."""
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``policies`` to the CLI."""
-    p = sub.add_parser("policies", help="list the available policies")
+    p = sub.add_parser("policies", help="list the available policies", description=POLICY_KINDS,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.set_defaults(func=run)
 

@@ -6,7 +6,9 @@ returns ``actions`` (N, 12), N being any batch size (a dynamic axis, named
 ``batch``); joint targets are q* = q̊ + action_scale · actions. The
 normalisers and the Mass-Contact Predictor are inside the graph. A JSON
 sidecar ``<file>.onnx.json`` (`sidecar_path`) records the conventions (input
-layout, action scale, method).
+layout, action scale, method) and, under ``"layout"``, the policy's
+`frbench.policies.contract.PolicyLayout`, which ``frbench evaluate --policy
+<file>.onnx`` reads.
 """
 
 from __future__ import annotations
@@ -60,6 +62,12 @@ def export_onnx(policy_path: str, out: Path) -> Path:
     torch.onnx.export(model, inputs, buffer, export_params=True, opset_version=18,
                       input_names=input_names, output_names=output_names, dynamo=False,
                       dynamic_axes={name: {0: BATCH_AXIS} for name in input_names + output_names})
+    from frbench.policies.contract import learned_layout
+
+    layout = learned_layout(policy)
+    if [i.name for i in layout.inputs] != input_names:
+        raise PolicyError(f"policy {policy_path!r}: its graph inputs {input_names} are not its layout's "
+                          f"{[i.name for i in layout.inputs]}")
     sidecar = {
         "method": policy.method,
         "inputs": {name: [BATCH_AXIS, *tensor.shape[1:]] for name, tensor in zip(input_names, inputs)},
@@ -70,6 +78,8 @@ def export_onnx(policy_path: str, out: Path) -> Path:
                   + (" (canonical FL, FR, RL, RR)" if policy.robot_kind == "quadruped" else ""),
         "action_scale": policy.action_scale,
         "checkpoint": str(policy.checkpoint),
+        "robot_kind": policy.robot_kind,
+        "layout": layout.to_dict(),
     }
     atomic_write_bytes(out, buffer.getvalue())
     atomic_write_text(sidecar_path(out), json.dumps(sidecar, indent=1) + "\n")

@@ -3,8 +3,10 @@
 ``load_policy(name_or_path)``:
 
 1. a built-in name (`BUILTIN_POLICIES`, imported on first use);
-2. an existing file or run folder → :func:`frbench.policies.checkpoint.load_checkpoint_policy`;
-3. a plugin: an entry point of group ``frbench.policies`` loading to a
+2. a policy trained elsewhere: an ONNX, TorchScript or Stable-Baselines3 file, or a ``module:attr`` /
+   ``file.py:attr`` Python policy, optionally with a layout file (`frbench.policies.references`);
+3. an existing file or run folder → :func:`frbench.policies.checkpoint.load_checkpoint_policy`;
+4. a plugin: an entry point of group ``frbench.policies`` loading to a
    zero-argument callable that returns a policy (read only on a miss, or
    when listing).
 """
@@ -90,6 +92,11 @@ def load_policy(name_or_path: str):
         from frbench.policies.checkpoint import load_checkpoint_policy
 
         return load_checkpoint_policy(path)
+    from frbench.policies.references import load_foreign_policy
+
+    foreign = load_foreign_policy(name_or_path)  # ONNX, TorchScript, Stable-Baselines3 or a Python policy
+    if foreign is not None:
+        return foreign
     path = Path(name_or_path)
     if path.exists():
         from frbench.policies.checkpoint import load_checkpoint_policy
