@@ -147,3 +147,14 @@ def test_mpc_results_say_it_reads_the_simulator_state(monkeypatch):
     results["policy"]["inputs"] = "everything"
     with pytest.raises(SchemaViolation, match="inputs"):
         validate(results, "results-v1")
+
+
+def test_board_never_ranks_a_policy_that_reads_the_simulator_state_with_blind_ones():
+    from frbench.leaderboard.render import inputs_of, section_of
+    from frbench.tasks.protocol import PROTOCOL_VERSION
+
+    blind = {"track": "main", "results": {"protocol_version": PROTOCOL_VERSION, "policy": {"name": "frnet"}}}
+    planner = {"track": "main", "results": {"protocol_version": PROTOCOL_VERSION,
+                                            "policy": {"name": "mpc", "inputs": "simulator-state"}}}
+    assert (section_of(blind), inputs_of(blind)) == ("main", "proprioception")
+    assert (section_of(planner), inputs_of(planner)) == ("partial", "simulator-state")

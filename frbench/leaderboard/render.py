@@ -75,10 +75,20 @@ def axes(records: Sequence[Mapping]) -> dict[str, list]:
 
 
 def section_of(record: Mapping) -> str:
-    """``main`` / ``partial`` for records of the current protocol version, ``archived`` for any other version."""
+    """``main`` / ``partial`` for records of the current protocol version, ``archived`` for any other version. A
+    policy that reads the simulator's state (`inputs_of`) is never ranked with blind policies: ``partial``."""
     if record["results"]["protocol_version"] != PROTOCOL_VERSION:
         return "archived"
-    return record["track"]
+    return "partial" if inputs_of(record) == SIMULATOR_STATE else record["track"]
+
+
+#: ``results.policy.inputs`` of a policy that reads the acting simulator's full state (a planner such as ``mpc``).
+SIMULATOR_STATE = "simulator-state"
+
+
+def inputs_of(record: Mapping) -> str:
+    """What the record's policy read: ``proprioception`` (the default: a blind policy) or ``simulator-state``."""
+    return record["results"]["policy"].get("inputs", "proprioception")
 
 
 def _rank(rows: list[dict]) -> None:
@@ -107,6 +117,7 @@ def board(records: Sequence[Mapping], *, robot: str | None = None, backend: str 
             continue
         sections[section_of(record)].append({
             **_identity(record),
+            "inputs": inputs_of(record),
             "protocol_version": record["results"]["protocol_version"],
             "scores": scores,
             "intervals": score_intervals(cells, robot=robot, backend=backend, terrain=terrain),
@@ -267,7 +278,8 @@ def render_markdown(records: Sequence[Mapping]) -> str:
         out = [_md_row(head), _md_row(["---"] * len(head))]
         for row in rows:
             s, iv = row["scores"], row["intervals"]
-            values = [md_escape(row["name"]), md_escape(row["policy"]), md_escape(row["submitter"])]
+            state = " (simulator state)" if row["inputs"] == SIMULATOR_STATE else ""
+            values = [md_escape(row["name"]), md_escape(row["policy"]) + state, md_escape(row["submitter"])]
             if protocol:
                 values.append(md_escape(row["protocol_version"]))
             if protocol or not ranked:
@@ -344,6 +356,7 @@ def page_data(records: Sequence[Mapping]) -> dict:
         entries.append({
             **_identity(record),
             "section": section_of(record),
+            **({"inputs": SIMULATOR_STATE} if inputs_of(record) == SIMULATOR_STATE else {}),
             "protocol_version": record["results"]["protocol_version"],
             "episodes": record["scores"]["episodes"],
             "groups": [[*key, total, count] for key, (total, count) in groups.items()],
