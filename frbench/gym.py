@@ -219,8 +219,7 @@ class FallRecoveryVectorEnv(VectorEnv):
     def render_frame(self, row: int = 0) -> np.ndarray:
         """An RGB image (H, W, 3) uint8 of environment ``row`` now, captioned with time, success and simulator."""
         from frbench.backends.base import CONTROL_DT
-        from frbench.commands.render import SIMULATOR_LABELS
-        from frbench.render import SceneRenderer, caption
+        from frbench.render import SIMULATOR_LABELS, SceneRenderer, caption
 
         if self._renderer is None:
             self._renderer = SceneRenderer(self.spec_robot, self.terrain, *self.render_size)

@@ -112,7 +112,7 @@ def test_policies_lists_without_torch_and_describes_each_checkpoint_from_its_con
 
 
 def test_importing_pybullet_through_frbench_prints_nothing():
-    done = subprocess.run([sys.executable, "-c", "import frbench.backends.pybullet_backend, frbench.terrains.build"],
+    done = subprocess.run([sys.executable, "-c", "import frbench.backends.pybullet_backend, frbench.backends.terrain_build"],
                           capture_output=True, text=True, check=True)
     assert done.stdout == "" and done.stderr == ""
 

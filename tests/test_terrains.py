@@ -341,7 +341,7 @@ def test_spawn_lies_on_the_hard_feature():
 def _mujoco_model(terrain: Terrain, friction: float = 0.7):
     import mujoco
 
-    from frbench.terrains.build import add_to_mjspec
+    from frbench.backends.terrain_build import add_to_mjspec
 
     spec = mujoco.MjSpec()
     names = add_to_mjspec(spec, terrain, friction)
@@ -355,7 +355,7 @@ def _bullet_client(terrain: Terrain, friction: float = 0.7):
     import pybullet
     from pybullet_utils.bullet_client import BulletClient
 
-    from frbench.terrains.build import add_to_bullet
+    from frbench.backends.terrain_build import add_to_bullet
 
     client = BulletClient(connection_mode=pybullet.DIRECT)
     return client, add_to_bullet(client, terrain, friction)

@@ -40,7 +40,7 @@ import numpy as np
 
 from frbench.backends.contact_layout import contact_layout, vector_norm
 from frbench.robots.spec import RobotSpec
-from frbench.tasks.protocol import CONTROL_DT  # noqa: F401  (the protocol's control period [s], used by backends)
+from frbench.control import CONTROL_DT  # noqa: F401  (the control period [s], re-exported for the backends)
 
 #: A state with |value| above this (m, rad, m/s, rad/s) is treated as diverged.
 DIVERGENCE_LIMIT = 1e3

@@ -43,7 +43,7 @@ from frbench.robots.spec import RobotSpec
 
 def build_spec(spec: RobotSpec, terrain, friction: float = 1.0) -> mujoco.MjSpec:
     """An ``MjSpec`` of ``spec`` on ``terrain`` (see the module docstring)."""
-    from frbench.terrains.build import add_to_mjspec
+    from frbench.backends.terrain_build import add_to_mjspec
 
     sim = sim_robot_file(spec)
     mj = mujoco.MjSpec.from_file(str(sim.path))
@@ -115,7 +115,7 @@ def build_model(spec: RobotSpec, terrain, friction: float = 1.0) -> mujoco.MjMod
 
     sim = sim_robot_file(spec)
     key = content_key(spec, sim.path.read_bytes(), object_key(terrain), float(friction), mujoco.__version__,
-                      source_key(__name__, "frbench.terrains.build", "frbench.robots.sim_urdf"))
+                      source_key(__name__, "frbench.backends.terrain_build", "frbench.robots.sim_urdf"))
 
     def compile_model() -> bytes:
         model = build_spec(spec, terrain, friction).compile()

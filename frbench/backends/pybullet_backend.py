@@ -87,7 +87,7 @@ class _Simulation:
     """One Bullet world with the robot and the terrain."""
 
     def __init__(self, spec: RobotSpec, urdf_path: str, terrain, link_names: tuple[str, ...]):
-        from frbench.terrains.build import add_to_bullet
+        from frbench.backends.terrain_build import add_to_bullet
 
         with _c_stdout_silenced():
             self.client = BulletClient(connection_mode=p.DIRECT)

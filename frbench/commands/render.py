@@ -6,7 +6,6 @@ import argparse
 from pathlib import Path
 
 #: Simulator names as the overlay writes them.
-SIMULATOR_LABELS = {"mujoco": "MuJoCo", "pybullet": "PyBullet"}
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -94,8 +93,7 @@ def record_episode(policy, args):
 
 def draw_episode(spec, args, trajectory, width: int, height: int) -> list:
     """Frames (H, W, 3) uint8 at ``args.fps``, each with the time, success state and simulator written on it."""
-    from frbench.render import SceneRenderer, caption
-
+    from frbench.render import SIMULATOR_LABELS, SceneRenderer, caption
     from frbench.terrains import make_terrain
 
     stride = max(1, round(50 / args.fps))

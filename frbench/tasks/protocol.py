@@ -7,6 +7,8 @@ Every results file records it; the leaderboard refuses unknown versions.
 
 from __future__ import annotations
 
+from frbench.control import CONTROL_DT  # noqa: F401  (the control period [s] is part of the protocol)
+
 #: The protocol this code implements.
 PROTOCOL_VERSION = "1.1"
 #: Every protocol version whose results the leaderboard accepts.
@@ -14,8 +16,6 @@ KNOWN_PROTOCOL_VERSIONS = ("1.0", "1.1")
 #: Version of the results JSON layout written by ``frbench evaluate``.
 RESULTS_SCHEMA_VERSION = 1
 
-#: Control period [s] (50 Hz) for every robot and backend.
-CONTROL_DT = 0.02
 #: Evaluation episode length [s].
 EPISODE_SECONDS = 5.0
 

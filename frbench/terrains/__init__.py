@@ -4,7 +4,7 @@
 over a floor plane, plus the spawn pose of the fallen robot);
 :func:`height_at`, :func:`height_scan` and :func:`support_height` answer
 geometric questions analytically. The simulator side lives in
-:mod:`frbench.terrains.build` (``add_to_mjspec``, ``add_to_bullet``), which is
+:mod:`frbench.backends.terrain_build` (``add_to_mjspec``, ``add_to_bullet``), which is
 not imported here so that importing this package loads no simulator.
 """
 

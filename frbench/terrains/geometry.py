@@ -6,7 +6,7 @@ geometric questions about them without any simulator:
 
 * :func:`height_at` — the height a vertical ray cast downward from high above
   first hits (the same number MuJoCo's ``mj_ray`` and PyBullet's ``rayTest``
-  return for the geometry :mod:`frbench.terrains.build` creates);
+  return for the geometry :mod:`frbench.backends.terrain_build` creates);
 * :func:`height_scan` — the 187-point height scan of the FR-Net critic;
 * :func:`support_height` — the highest terrain point within a disc (to drop a
   robot without intersecting the terrain).

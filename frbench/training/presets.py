@@ -12,8 +12,12 @@ from types import MappingProxyType
 from typing import Mapping
 
 from frbench.training.rewards import STABILITY_TERMS
-from frbench.training.symmetry import SYMMETRY_AUGMENTATION
 
+#: The ``algorithm.symmetry_cfg`` of a run trained with mirrored samples (rsl-rl's keys; the mirror is
+#: `frbench.training.symmetry.mirror_quadruped`, imported by rsl-rl when training starts).
+SYMMETRY_AUGMENTATION = MappingProxyType({
+    "use_data_augmentation": True, "use_mirror_loss": False, "mirror_loss_coeff": 0.0,
+    "data_augmentation_func": "frbench.training.symmetry:mirror_quadruped"})
 #: Scale of the motion penalties in the G1 residual runs, relative to the paper's weights.
 G1_MOTION_PENALTY_SCALE = 0.01
 

@@ -160,7 +160,3 @@ def mirror_quadruped(env=None, obs: TensorDict | None = None, actions: torch.Ten
         out_actions = torch.cat([actions, JOINTS(actions)], dim=0)
     return out_obs, out_actions
 
-
-#: The ``algorithm.symmetry_cfg`` of a run trained with mirrored samples (rsl-rl's keys).
-SYMMETRY_AUGMENTATION = {"use_data_augmentation": True, "use_mirror_loss": False, "mirror_loss_coeff": 0.0,
-                         "data_augmentation_func": "frbench.training.symmetry:mirror_quadruped"}
