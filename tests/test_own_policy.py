@@ -88,6 +88,24 @@ def test_torchscript_frnet_with_the_spec_json_as_sidecar_gives_the_checkpoint_s_
     assert results["episodes"] == reference["frnet"]["episodes"]  # the same float32 kernels: bit-identical
 
 
+def test_model_files_carry_their_layout_without_a_sidecar(folder, frnet_onnx):
+    import shutil
+
+    import torch
+
+    alone = folder / "alone"
+    alone.mkdir()
+    shutil.copy(frnet_onnx, alone / "frnet.onnx")  # the ONNX file alone: the layout is in its metadata
+    assert load_policy(str(alone / "frnet.onnx")).layout == load_policy(str(frnet_onnx)).layout
+    assert load_policy(str(alone / "frnet.onnx")).layout.input_sizes(12) == {"obs": 42, "history": 210}
+    layout = '{"observation": ["base_angvel", "projected_gravity", "joint_pos"], "action_scale": 0.5}'
+    torch.jit.save(torch.jit.trace(mlp(inputs=18), torch.zeros(1, 18)), str(alone / "small.pt"),
+                   _extra_files={"frbench_layout.json": layout})
+    small = load_policy(str(alone / "small.pt"))
+    assert small.layout.frame_size(12) == 18 and small.layout.action_scale == 0.5
+    assert small.supports(get_robot("go1"))
+
+
 def test_a_foreign_onnx_mlp_runs_in_both_simulators_on_frbench_s_default_layout(folder, reference):
     import torch
 

@@ -112,3 +112,18 @@ def test_a_layout_for_other_joints_is_refused_naming_the_robot_s():
         contract_for(get_robot("go2"), PolicyLayout(joint_names=tuple(f"j{k}" for k in range(12))))
     with pytest.raises(PolicyError, match="default_pose has 3 values, robot 'go2' has 12 joints"):
         contract_for(get_robot("go2"), PolicyLayout(default_pose=(0.0, 0.0, 0.0)))
+
+
+def test_the_layouts_in_docs_own_policy_read_and_fit_go2_with_48_values():
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "own-policy.md").read_text()
+    blocks = re.findall(r"```json\n(.*?)```", text, re.S)
+    assert len(blocks) == 2
+    isaac, legged = (PolicyLayout.from_dict(json.loads(block), "docs/own-policy.md") for block in blocks)
+    go2 = get_robot("go2")
+    for layout in (isaac, legged):
+        assert layout.frame_size(12) == 48 and layout.action_scale == 0.25
+    assert contract_for(go2, isaac).order == (0, 3, 6, 9, 1, 4, 7, 10, 2, 5, 8, 11) and isaac.action_clip is None
+    assert contract_for(go2, legged).order == tuple(range(12)) and legged.observation[1].scale == 0.25

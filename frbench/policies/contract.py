@@ -49,6 +49,9 @@ from frbench.tasks.protocol import CONTROL_DT, PROTOCOL_VERSION
 
 #: ``"format"`` of a layout dict.
 LAYOUT_FORMAT = "frbench-policy-layout-v1"
+#: Key under which a model file carries its layout's JSON (ONNX ``metadata_props``; TorchScript extra file
+#: ``frbench_layout.json``).
+EMBEDDED_LAYOUT_KEY = "frbench_layout"
 #: ``"format"`` of a contract dict (``frbench spec --json``).
 CONTRACT_FORMAT = "frbench-policy-contract-v1"
 #: Observation terms: name → (unit, meaning, size: an int, "J" (one per joint) or None (given by ``size``)).

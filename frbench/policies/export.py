@@ -8,7 +8,8 @@ normalisers and the Mass-Contact Predictor are inside the graph. A JSON
 sidecar ``<file>.onnx.json`` (`sidecar_path`) records the conventions (input
 layout, action scale, method) and, under ``"layout"``, the policy's
 `frbench.policies.contract.PolicyLayout`, which ``frbench evaluate --policy
-<file>.onnx`` reads.
+<file>.onnx`` reads; the ONNX file carries the same layout in its metadata
+(key ``frbench_layout``), so that the file alone can be evaluated.
 """
 
 from __future__ import annotations
@@ -62,7 +63,7 @@ def export_onnx(policy_path: str, out: Path) -> Path:
     torch.onnx.export(model, inputs, buffer, export_params=True, opset_version=18,
                       input_names=input_names, output_names=output_names, dynamo=False,
                       dynamic_axes={name: {0: BATCH_AXIS} for name in input_names + output_names})
-    from frbench.policies.contract import learned_layout
+    from frbench.policies.contract import EMBEDDED_LAYOUT_KEY, learned_layout
 
     layout = learned_layout(policy)
     if [i.name for i in layout.inputs] != input_names:
@@ -81,6 +82,11 @@ def export_onnx(policy_path: str, out: Path) -> Path:
         "robot_kind": policy.robot_kind,
         "layout": layout.to_dict(),
     }
-    atomic_write_bytes(out, buffer.getvalue())
+    import onnx
+
+    graph = onnx.load_model_from_string(buffer.getvalue())
+    onnx.helper.set_model_props(graph, {EMBEDDED_LAYOUT_KEY: json.dumps({"layout": layout.to_dict(),
+                                                                         "robot_kind": policy.robot_kind})})
+    atomic_write_bytes(out, graph.SerializeToString())
     atomic_write_text(sidecar_path(out), json.dumps(sidecar, indent=1) + "\n")
     return out

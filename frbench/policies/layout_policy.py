@@ -14,18 +14,62 @@ actions (N, J), and may check its model against the layout in ``check``.
 
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 
 import numpy as np
 
 from frbench.errors import PolicyError
-from frbench.policies.contract import Contract, PolicyLayout, contract_for
+from frbench.policies.contract import Contract, LayoutInput, PolicyLayout, contract_for, read_layout
+from frbench.policies.export import sidecar_path
 
 
 def safe_name(text: str) -> str:
     """A results-safe policy name (letters, digits, ``._-``; at most 64 characters)."""
     return re.sub(r"[^A-Za-z0-9._-]", "-", text).strip("-")[:64] or "policy"
+
+
+def _json(text: str, source: str):
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise PolicyError(f"{source}: not JSON ({exc})") from None
+
+
+def sidecar_layout(data, source: str) -> PolicyLayout:
+    """The layout of a sidecar's JSON; a frbench export's sidecar without ``"layout"`` (an older export) gives
+    its inputs' widths and action scale."""
+    if isinstance(data, dict) and "layout" not in data and isinstance(data.get("inputs"), dict) and "obs" in data["inputs"]:
+        try:
+            frame = int(data["inputs"]["obs"][-1])
+            inputs = tuple(LayoutInput(name, int(shape[-1]) // frame) for name, shape in data["inputs"].items())
+            return PolicyLayout(inputs=inputs, action_scale=float(data["action_scale"]))
+        except (TypeError, ValueError, KeyError, IndexError, ZeroDivisionError):
+            raise PolicyError(f"{source}: a sidecar without a layout and with unreadable inputs") from None
+    return PolicyLayout.from_dict(data, source)
+
+
+def model_layout(path: Path, layout_file: str | None, embedded: str | None) -> tuple[PolicyLayout, str | None]:
+    """The layout of model file ``path`` and the robot kind it declares (or None): from ``layout_file``
+    (``--spec``), else its sidecar ``<file>.json``, else the layout JSON ``embedded`` in the model file, else
+    frbench's default `PolicyLayout`."""
+    sidecar = sidecar_path(path)
+    if layout_file:
+        return read_layout(layout_file), None
+    if sidecar.is_file():
+        try:
+            data = _json(sidecar.read_text(), str(sidecar))
+        except (OSError, UnicodeDecodeError) as exc:
+            raise PolicyError(f"{sidecar}: not a readable sidecar ({exc})") from None
+        source = str(sidecar)
+    elif embedded:
+        source = f"{path}: embedded layout"
+        data = _json(embedded, source)
+    else:
+        return PolicyLayout(), None
+    kind = data.get("robot_kind") if isinstance(data, dict) else None
+    return sidecar_layout(data, source), kind if kind in ("quadruped", "humanoid") else None
 
 
 def check_output(array, contract: Contract, num_envs: int, who: str) -> np.ndarray:

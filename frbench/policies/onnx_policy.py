@@ -1,7 +1,8 @@
 """ONNX policies, run with onnxruntime: frbench's own export or any network exported to ONNX.
 
-The layout comes from ``--spec FILE``, else the sidecar ``<file>.onnx.json``
-(``frbench export`` writes one; its ``"layout"``), else frbench's default
+The layout comes from ``--spec FILE``, else the sidecar ``<file>.onnx.json``,
+else the model's metadata (``metadata_props`` key ``frbench_layout``: the JSON
+of a layout; ``frbench export`` writes both), else frbench's default
 `PolicyLayout` (one input, the 42-value o_t of a quadruped, normalised actions
 q* = q_default + 1.0 · a). Layout inputs are matched to the graph's inputs by
 name, or by position when both have one input. Inputs are cast to the graph's
@@ -12,46 +13,16 @@ axes) is run one environment at a time.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
 from frbench.errors import PolicyError
-from frbench.policies.contract import Contract, LayoutInput, PolicyLayout, read_layout
-from frbench.policies.export import sidecar_path
-from frbench.policies.layout_policy import LayoutPolicy, safe_name
+from frbench.policies.contract import EMBEDDED_LAYOUT_KEY, Contract, PolicyLayout
+from frbench.policies.layout_policy import LayoutPolicy, model_layout, safe_name
 
 #: onnxruntime's tensor types that a layout's float inputs may be cast to.
 FLOAT_TYPES = {"tensor(float)": np.float32, "tensor(double)": np.float64, "tensor(float16)": np.float16}
-
-
-def sidecar_layout(path: Path) -> PolicyLayout | None:
-    """The layout in the sidecar of model file ``path``, or None if it has none. A sidecar of a frbench export
-    without a ``"layout"`` (an older export) gives its inputs' widths and action scale."""
-    data = read_sidecar(path)
-    if data is None:
-        return None
-    sidecar = sidecar_path(path)
-    if isinstance(data, dict) and "layout" not in data and isinstance(data.get("inputs"), dict) and "obs" in data["inputs"]:
-        try:
-            frame = int(data["inputs"]["obs"][-1])
-            inputs = tuple(LayoutInput(name, int(shape[-1]) // frame) for name, shape in data["inputs"].items())
-            return PolicyLayout(inputs=inputs, action_scale=float(data["action_scale"]))
-        except (TypeError, ValueError, KeyError, IndexError, ZeroDivisionError):
-            raise PolicyError(f"{sidecar}: a sidecar without a layout and with unreadable inputs") from None
-    return PolicyLayout.from_dict(data, str(sidecar))
-
-
-def read_sidecar(path: Path) -> dict | None:
-    """The JSON of model file ``path``'s sidecar, or None if there is none."""
-    sidecar = sidecar_path(path)
-    if not sidecar.is_file():
-        return None
-    try:
-        return json.loads(sidecar.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise PolicyError(f"{sidecar}: not a readable JSON sidecar ({exc})") from None
 
 
 def import_onnxruntime():
@@ -125,7 +96,6 @@ class OnnxPolicy(LayoutPolicy):
 def load_onnx_policy(path: Path, layout_file: str | None = None) -> OnnxPolicy:
     """The ONNX policy at ``path`` with the layout of ``layout_file``, its sidecar or the default."""
     ort = import_onnxruntime()
-    layout = read_layout(layout_file) if layout_file else sidecar_layout(path) or PolicyLayout()
     options = ort.SessionOptions()
     options.intra_op_num_threads = options.inter_op_num_threads = 1  # one core per evaluation worker
     options.log_severity_level = 3
@@ -134,6 +104,6 @@ def load_onnx_policy(path: Path, layout_file: str | None = None) -> OnnxPolicy:
     except Exception as exc:  # onnxruntime raises its own types for unreadable models
         raise PolicyError(f"{path}: not a readable ONNX model ({type(exc).__name__}: "
                           f"{str(exc).splitlines()[0][:200] if str(exc) else ''})") from None
-    sidecar = read_sidecar(path) or {}
-    kind = sidecar.get("robot_kind") if isinstance(sidecar, dict) else None
-    return OnnxPolicy(path, layout, session, kind if kind in ("quadruped", "humanoid") else None)
+    embedded = session.get_modelmeta().custom_metadata_map.get(EMBEDDED_LAYOUT_KEY)
+    layout, kind = model_layout(path, layout_file, embedded)
+    return OnnxPolicy(path, layout, session, kind)

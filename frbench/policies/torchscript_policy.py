@@ -1,7 +1,10 @@
 """TorchScript policies: a module saved with ``torch.jit.save``, called as ``module(*inputs) -> actions``.
 
 The layout comes from ``--spec FILE``, else the sidecar ``<file>.json`` beside
-it (``policy.pt`` → ``policy.pt.json``), else frbench's default `PolicyLayout`.
+it (``policy.pt`` → ``policy.pt.json``), else the extra file
+``frbench_layout.json`` saved in the archive (``torch.jit.save(module, path,
+_extra_files={"frbench_layout.json": layout_json})``), else frbench's default
+`PolicyLayout`.
 The module gets one float32 tensor (N, width) per layout input, in the layout's
 order, and returns actions (N, J) (or a tuple whose first element they are).
 frbench's trained actors script this way: ``torch.jit.script(actor.as_jit())``.
@@ -15,9 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from frbench.errors import PolicyError
-from frbench.policies.contract import PolicyLayout, read_layout
-from frbench.policies.layout_policy import LayoutPolicy, safe_name
-from frbench.policies.onnx_policy import sidecar_layout
+from frbench.policies.contract import EMBEDDED_LAYOUT_KEY, PolicyLayout
+from frbench.policies.layout_policy import LayoutPolicy, model_layout, safe_name
 
 
 def is_torchscript_archive(path: Path) -> bool:
@@ -32,8 +34,8 @@ def is_torchscript_archive(path: Path) -> bool:
 class TorchScriptPolicy(LayoutPolicy):
     """A TorchScript module driven through its layout (torch's thread count is the caller's)."""
 
-    def __init__(self, path: Path, layout: PolicyLayout, module):
-        super().__init__(safe_name(path.stem), path, layout)
+    def __init__(self, path: Path, layout: PolicyLayout, module, kind: str | None = None):
+        super().__init__(safe_name(path.stem), path, layout, kind)
         self.module = module
 
     def forward(self, inputs: dict[str, np.ndarray]) -> np.ndarray:
@@ -60,11 +62,13 @@ def load_torchscript_policy(path: Path, layout_file: str | None = None) -> Torch
     """The TorchScript module at ``path`` with the layout of ``layout_file``, its sidecar or the default."""
     import torch
 
-    layout = read_layout(layout_file) if layout_file else sidecar_layout(path) or PolicyLayout()
+    extra = {f"{EMBEDDED_LAYOUT_KEY}.json": ""}
     try:
-        module = torch.jit.load(str(path), map_location="cpu")
+        module = torch.jit.load(str(path), map_location="cpu", _extra_files=extra)
     except Exception as exc:  # torch raises many types for unreadable archives
         raise PolicyError(f"{path}: not a loadable TorchScript module ({type(exc).__name__}: "
                           f"{str(exc).splitlines()[0][:200] if str(exc) else ''})") from None
     module.eval()
-    return TorchScriptPolicy(path, layout, module)
+    embedded = extra[f"{EMBEDDED_LAYOUT_KEY}.json"]
+    layout, kind = model_layout(path, layout_file, embedded.decode() if isinstance(embedded, bytes) else embedded)
+    return TorchScriptPolicy(path, layout, module, kind)
