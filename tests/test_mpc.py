@@ -158,3 +158,15 @@ def test_board_never_ranks_a_policy_that_reads_the_simulator_state_with_blind_on
                                             "policy": {"name": "mpc", "inputs": "simulator-state"}}}
     assert (section_of(blind), inputs_of(blind)) == ("main", "proprioception")
     assert (section_of(planner), inputs_of(planner)) == ("partial", "simulator-state")
+
+
+def test_mpc_policy_drives_a_robot_added_by_path():
+    from frbench.robots.paths import example_robot_data
+
+    spec = get_robot(str(example_robot_data("a1_description/urdf/a1.urdf")))
+    terrain = make_terrain("rough", 1, 0)
+    starts = draw_starts(spec, terrain, "rough", 1, 0, [0])
+    policy = MpcPolicy(PlannerConfig(samples=4, horizon=0.1, knots=2, planning_dt=max(spec.physics_dt, 0.005)))
+    task = run_episodes(spec, "mujoco", terrain, starts, policy, seed=0, steps=4)
+    assert policy.planning.model.nu == 2 * spec.n_joints
+    assert np.isfinite(policy.last_cost).all() and not task.backend.diverged.any()

@@ -5,6 +5,12 @@ control step, a dict of proprioceptive arrays (N rows; see
 `frbench.tasks.observations`), and returns joint targets q* [rad] of shape
 (N, n_joints) in the spec's canonical order. Policies that think in offsets
 (the paper's q* = q̊ + a) add the default pose themselves.
+
+A policy that is not blind declares ``uses_simulator_state = True`` and an ``inputs`` string: the episode
+runner (`frbench.evaluation.episodes.run_episodes`) then calls ``reset_episode(terrain, seed)`` after
+``reset`` and ``observe_state(state)`` with the simulator's `RobotState` before each ``act``, and its
+results carry ``policy.inputs`` (the ``mpc`` planner: ``simulator-state``), so that the leaderboard never
+ranks it with blind policies.
 """
 
 from __future__ import annotations
