@@ -38,3 +38,15 @@ def test_losses_are_averaged_over_the_updates_of_a_logging_window_and_the_csv_le
     text = curve_csv_text([{"env_steps": 1, "success_all": 0.5}, {"env_steps": 2, "loss_value": 1.0}])
     assert text.splitlines() == ["env_steps,success_all,loss_value", "1,0.5,", "2,,1.0"]
 
+
+
+def test_a_run_writes_no_rsl_rl_model_files_and_its_curve_reaches_tensorboard(tmp_path):
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    cfg = TrainEnvConfig(num_envs=4, episode_steps=5, settle_steps=2, num_morphologies=2, families=("flat",))
+    TrainingRun(tmp_path / "run", "frnet", cfg, total_steps=4 * 24 * 2, checkpoint_every=1).train(progress_bar=False)
+    assert not list((tmp_path / "run").glob("model_*.pt"))
+    events = EventAccumulator(str(tmp_path / "run"))
+    events.Reload()
+    steps = [e.step for e in events.Scalars("train/success_flat")]
+    assert steps == [96, 192] and "loss/loss_value" in events.Tags()["scalars"]

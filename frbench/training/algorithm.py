@@ -115,7 +115,7 @@ class EstimatorPPO(PPO):
             if value is not None and value != ppo_value:
                 raise ValueError(f"{name} = {value}: the estimator trains on PPO's mini-batches, so it must equal "
                                  f"PPO's {ppo_value} (or be left out)")
-        self.estimator = getattr(self._raw_actor, "estimator", None)
+        self.estimator = getattr(self.get_policy(), "estimator", None)
         self.estimator_max_grad_norm = estimator_max_grad_norm
         self._next_obs: TensorDict | None = None
         self._estimator_sums: dict[str, float] = {}
@@ -140,7 +140,7 @@ class EstimatorPPO(PPO):
             return self._update_with_estimator()
 
     def _update_with_estimator(self) -> dict[str, float]:
-        actor: EstimatorActor = self._raw_actor  # type: ignore[assignment]
+        actor: EstimatorActor = self.get_policy()  # type: ignore[assignment]
         observations = self.storage.observations
         next_o, valid = self.estimator_targets()
         observations[NEXT_OBS_GROUP], observations[NEXT_VALID_GROUP] = next_o, valid.unsqueeze(-1)
@@ -171,7 +171,7 @@ class EstimatorPPO(PPO):
 
     def _estimator_step(self, batch) -> None:
         """One Adam step of the estimator on the output the actor kept from this mini-batch's forward pass."""
-        actor: EstimatorActor = self._raw_actor  # type: ignore[assignment]
+        actor: EstimatorActor = self.get_policy()  # type: ignore[assignment]
         out = actor.estimator_output
         if out is None:
             raise RuntimeError("EstimatorPPO: the actor kept no estimator output for this mini-batch")
@@ -194,7 +194,7 @@ class EstimatorPPO(PPO):
 
     def estimator_targets(self) -> tuple[torch.Tensor, torch.Tensor]:
         """Normalised o_{t+1} (T, N, D) for every stored transition and its validity (T, N) as 0/1 floats."""
-        actor: EstimatorActor = self._raw_actor  # type: ignore[assignment]
+        actor: EstimatorActor = self.get_policy()  # type: ignore[assignment]
         obs, dones = self.storage.observations, self.storage.dones.squeeze(-1).bool()  # (T, N, ...), (T, N)
         o_group = actor.obs_groups[0]
         with torch.no_grad():

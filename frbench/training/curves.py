@@ -44,6 +44,31 @@ class LossLog:
         return out
 
 
+class TensorBoardCurve:
+    """The learning curve's rows as TensorBoard scalars in the run folder (``tensorboard --logdir RUN``), one point
+    per row at its env step; the writer opens on the first row (rank 0 only writes)."""
+
+    def __init__(self, folder: Path):
+        self.folder = Path(folder)
+        self._writer = None
+
+    def add(self, row: dict) -> None:
+        if self._writer is None:
+            from torch.utils.tensorboard import SummaryWriter
+
+            self._writer = SummaryWriter(log_dir=str(self.folder))
+        for key, value in row.items():
+            if key not in ("iteration", "env_steps") and isinstance(value, (int, float)):
+                group = "loss" if key.startswith("loss_") else "train"
+                self._writer.add_scalar(f"{group}/{key}", value, global_step=int(row["env_steps"]))
+        self._writer.flush()
+
+    def close(self) -> None:
+        if self._writer is not None:
+            self._writer.close()
+            self._writer = None
+
+
 def curve_columns(rows: list[dict]) -> list[str]:
     """Every key of the rows: `LEADING_COLUMNS` first, then success rates, then the rest, each sorted."""
     keys = {k for row in rows for k in row}

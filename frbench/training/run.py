@@ -12,9 +12,11 @@ A run folder ``runs/NAME/`` holds:
 * ``snapshots/policy_<env steps>.pt``: a copy of ``policy.pt`` every
   ``SNAPSHOT_EVERY_STEPS`` env steps (≈ 0.9 MB each), so that success can be
   measured with ``frbench evaluate`` along the run (steps to a target);
-* ``progress.json``: one row per checkpoint (env steps, wall-clock, success
-  rates), from which ``curve.png`` is drawn;
-* TensorBoard event files.
+* ``progress.json`` and ``curve.csv``: the learning curve, one row per checkpoint
+  (env steps, wall-clock, success rates, mean losses; `frbench.training.curves`),
+  from which ``curve.png`` is drawn;
+* TensorBoard event files of the same rows (frbench writes them: rsl-rl's runner
+  gets no log folder, so it writes no ``model_*.pt`` files of its own).
 
 Every file is written atomically, so a run killed at any point resumes from
 its last checkpoint: ``frbench train --resume runs/NAME``.
@@ -33,7 +35,7 @@ from pathlib import Path
 from frbench.errors import FrbenchError
 from frbench.io import atomic_write_text
 from frbench.policies.checkpoint import CHECKPOINT_FORMAT
-from frbench.training.curves import PROGRESS_FILE, LossLog, plot_training, write_curve_csv
+from frbench.training.curves import PROGRESS_FILE, LossLog, TensorBoardCurve, plot_training, write_curve_csv
 
 RUNNER_FILE, STATE_FILE, POLICY_FILE, CONFIG_FILE = "runner.pt", "state.pt", "policy.pt", "config.json"
 SNAPSHOT_DIR = "snapshots"
@@ -176,9 +178,10 @@ class TrainingRun:
         if ranks.is_main and (not resume or config != written):  # once, complete: a new run, a new stage, a resize
             self.out.mkdir(parents=True, exist_ok=True)
             atomic_write_text(self.out / CONFIG_FILE, json.dumps(config, indent=1) + "\n")
-        self.runner = distributed.runner_class()(self.env, json.loads(json.dumps(train_cfg)), log_dir=str(self.out),
+        self.runner = distributed.runner_class()(self.env, json.loads(json.dumps(train_cfg)), log_dir=None,
                                                  device=distributed.training_device())
         self.losses = LossLog()  # the updates' losses in each logging window, for the learning curve
+        self.tensorboard = TensorBoardCurve(self.out)
         logging_updates(self.runner.alg, self.losses)
         # control steps per iteration, summed over the ranks: each decision holds its action for `action_hold` steps
         self.steps_per_iteration = (self.env.num_envs * train_cfg["num_steps_per_env"] * self.env.cfg_obj.action_hold
@@ -255,8 +258,6 @@ class TrainingRun:
         atomic_write_text(self.out / PROGRESS_FILE, json.dumps(self.progress, indent=1) + "\n")
         write_curve_csv(self.progress, self.out)
         self._snapshot()
-        for old in self.out.glob("model_*.pt"):  # rsl-rl's own per-call saves; runner.pt supersedes them
-            old.unlink(missing_ok=True)
 
     def _snapshot(self) -> None:
         """Copy policy.pt to snapshots/ when the run has crossed another ``SNAPSHOT_EVERY_STEPS`` env steps."""
@@ -294,10 +295,13 @@ class TrainingRun:
                 self.env.env_steps = self.env_steps  # schedules (demo starts, assist force) follow the run's steps
             self.progress.append({"iteration": self.iteration, "env_steps": self.env_steps, "wall_s": round(self.wall, 1),
                                   **stats, **self.losses.means()})
+            if self.ranks.is_main:
+                self.tensorboard.add(self.progress[-1])
             self.save()
             bar.update(chunk)
             bar.set_postfix(steps=f"{self.env_steps / 1e6:.2f}M", success=stats.get("success_flat"))
         bar.close()
+        self.tensorboard.close()
         if self.ranks.is_main:
             plot_training([self.out], self.out / "curve.png", labels=[f"{self.method} ({self.out.name})"])
 
