@@ -25,6 +25,7 @@ COMMAND_MODULES = (
     "frbench.commands.evaluate",
     "frbench.commands.render",
     "frbench.commands.leaderboard",
+    "frbench.commands.verify",
     "frbench.commands.train",
     "frbench.commands.analyze",
     "frbench.commands.export",

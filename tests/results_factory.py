@@ -162,12 +162,13 @@ def write_results(path: Path, results: dict) -> Path:
 
 
 def empty_board_copy(source, dest):
-    """A copy of the leaderboard folder ``source`` at ``dest`` with no records, its pages regenerated."""
+    """A copy of the leaderboard folder ``source`` at ``dest`` with no records (nor their policy files), its pages
+    regenerated."""
     import shutil
 
     from frbench.leaderboard import regenerate
 
-    shutil.copytree(source, dest)
+    shutil.copytree(source, dest, ignore=shutil.ignore_patterns("policies"))
     for record in (dest / "records").glob("*.json"):
         record.unlink()
     regenerate(dest)

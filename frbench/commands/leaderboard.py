@@ -1,11 +1,12 @@
 """``frbench submit`` and ``frbench leaderboard``: the shared leaderboard under ``leaderboard/``.
 
-``frbench submit RESULTS.json [--name N --description D --submitter S --link URL]``
+``frbench submit RESULTS.json [--name N --description D --submitter S --link URL --policy-file FILE]``
 checks a results file written by ``frbench evaluate`` (schema, self-consistency,
 known protocol version), recomputes its scores and adds it as
 ``leaderboard/records/<id>.json``, then regenerates ``README.md`` and
-``index.html``. Bad input: one line on stderr naming the file and field, exit 2,
-nothing written.
+``index.html``. ``--policy-file`` stores the policy that produced the results
+beside the record (`frbench.leaderboard.policy_files`). Bad input: one line on
+stderr naming the file and field, exit 2, nothing written.
 
 ``frbench leaderboard [--format table|md|html|json] [--robot R --backend B --terrain T]``
 prints the ranking (table, json) or regenerates ``leaderboard/README.md`` (md)
@@ -38,6 +39,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     submit.add_argument("--link", default=None, help="http(s) URL of a paper, code or model card")
     submit.add_argument("--root", default=None, help="leaderboard folder (default: see `frbench leaderboard --help`)")
     submit.add_argument("--dry-run", action="store_true", help="check and score the results without writing anything")
+    submit.add_argument("--policy-file", default=None, metavar="FILE",
+                        help="attach the policy that produced the results (at most 16 MiB; stored as policies/<sha256><suffix>, "
+                             "with its FILE.json sidecar if present); results already on the board get it attached")
     submit.set_defaults(func=run_submit)
 
     board = subparsers.add_parser(
@@ -68,11 +72,15 @@ def run_submit(args: argparse.Namespace) -> int:
     root = resolve_root(args.root)
     outcome = submit(
         args.results, root, name=args.name, description=args.description, submitter=args.submitter,
-        link=args.link, dry_run=args.dry_run,
+        link=args.link, dry_run=args.dry_run, policy_file=args.policy_file,
     )
     from frbench.leaderboard.render import fmt_score
 
     record = outcome.record
+    if outcome.attached_only:
+        print(f"attached {record['policy_file']['file']} to record {record['id'][:12]} ({record['submission']['name']}); "
+              f"wrote {outcome.path}; commit it with {root / record['policy_file']['file']}")
+        return 0
     scores = record["scores"]
     verb = "would add" if args.dry_run else "added"
     print(
@@ -84,6 +92,9 @@ def run_submit(args: argparse.Namespace) -> int:
         from frbench.leaderboard.scores import main_track_shortfall
 
         print(f"partial, not ranked on the main board: {main_track_shortfall(record['results']['cells'])}")
+    if "policy_file" in record:
+        print(f"{'would attach' if args.dry_run else 'attached'} policy file {record['policy_file']['file']} "
+              f"({record['policy_file']['bytes']} bytes)")
     if outcome.written:
         print(f"wrote {outcome.path}; commit it with {root / 'README.md'} and {root / 'index.html'}")
     return 0

@@ -29,8 +29,10 @@ from frbench.leaderboard.records import (
     locked,
     record_files,
     record_text,
+    replace_record,
     submission_fields,
 )
+from frbench.leaderboard.policy_files import check_attachable, read_policy_file, store, stored_problems, stray_files
 from frbench.leaderboard.render import render_html, render_markdown
 from frbench.leaderboard.results import check_results
 from frbench.schemas import SCHEMA_NAMES, schema_text
@@ -97,14 +99,25 @@ def submit(
     link: str | None = None,
     submitted: str | None = None,
     dry_run: bool = False,
+    policy_file: str | os.PathLike | None = None,
 ) -> Submission:
-    """Check ``results_path`` and add it to the leaderboard at ``root`` as a new record."""
+    """Check ``results_path`` and add it to the leaderboard at ``root`` as a new record.
+
+    ``policy_file``: the policy that produced the results, stored as ``policies/<sha256><suffix>``
+    (`frbench.leaderboard.policy_files`). If these results are already a record that carries no
+    policy, the file is attached to that record (its other fields stay as they are).
+    """
     results = read_results(results_path)
     fields = submission_fields(
         results, name=name, description=description, submitter=submitter, link=link,
         submitted=submitted or _utc_now(),
     )
     record = build_record(results, fields)
+    attached = None
+    if policy_file is not None:
+        attached = read_policy_file(policy_file)
+        check_attachable(attached, results, os.fspath(policy_file))
+        record["policy_file"] = attached.entry()
     path = root / RECORDS / f"{record['id']}.json"
     if dry_run:
         return Submission(record, path, written=False)
@@ -112,22 +125,46 @@ def submit(
     folder = root / RECORDS
     if folder.exists() and not folder.resolve().is_relative_to(root.resolve()):
         raise FrbenchError(f"{folder} leads outside the leaderboard folder {root}; refusing to write there")
+    duplicate = (f"{os.fspath(results_path)}: these results were already submitted as record {short} ({path}); "
+                 "identical resubmissions are refused")
     with locked(root):
-        if path.exists():
-            raise ResultsError(f"{os.fspath(results_path)}: these results were already submitted as record {short} ({path}); identical resubmissions are refused")
         try:
             existing = load_records(root)
         except ResultsError as exc:
             raise ResultsError(f"cannot add a record while the leaderboard holds an invalid one: {exc}") from None
+        if path.exists():
+            current = next((r for r in existing if r["id"] == record["id"]), None)
+            if attached is None or current is None or "policy_file" in current:
+                raise ResultsError(duplicate + ("" if attached is None else " (it carries a policy file already)"))
+            record = {**current, "policy_file": attached.entry()}
+            store(root, attached)
+            replace_record(path, record)
+            _write_generated(root, [r if r["id"] != record["id"] else record for r in existing])
+            return Submission(record, path, written=True, attached_only=True)
+        if attached is not None:
+            store(root, attached)
         try:
             create_exclusive(path, record_text(record))
         except DuplicateRecord:
-            raise ResultsError(f"{os.fspath(results_path)}: these results were already submitted as record {short} ({path}); identical resubmissions are refused") from None
+            raise ResultsError(duplicate) from None
         try:
             _write_generated(root, [*existing, record])
         except FrbenchError as exc:
             raise FrbenchError(f"record {short} was written to {path}, but {exc}; run `frbench leaderboard --format md` and `--format html`") from None
     return Submission(record, path, written=True)
+
+
+def add_verification(root: Path, path: Path, entry: dict) -> dict:
+    """Append a passed verification (`frbench verify --save`) to the record at ``path``; regenerate the pages."""
+    with locked(root):
+        records = load_records(root)
+        current = next((r for r in records if f"{r['id']}.json" == path.name), None)
+        if current is None:
+            raise FrbenchError(f"{path}: not a record of the leaderboard {root}; --save writes only into a leaderboard folder")
+        record = {**current, "verifications": [*current.get("verifications", []), entry]}
+        replace_record(path, record)
+        _write_generated(root, [r if r["id"] != record["id"] else record for r in records])
+    return record
 
 
 @dataclass
@@ -153,6 +190,11 @@ def check(root: Path) -> CheckReport:
             report.records.append(load_record(path))
         except ResultsError as exc:
             report.problems.append(str(exc))
+    for record in report.records:
+        if "policy_file" in record:
+            report.problems += [f"record {record['id'][:12]}: {p}" for p in stored_problems(root, record["policy_file"])]
+    for stray in stray_files(root, report.records):
+        report.problems.append(f"{stray}: no record attaches this file (a leftover of a failed submission?)")
     if report.problems:
         report.problems.append(f"{root / README} and {root / INDEX} were not compared because of the problems above")
         return report

@@ -72,27 +72,35 @@ def _ends_early(text: str, exc: json.JSONDecodeError) -> bool:
     return exc.pos >= len(text.rstrip()) or exc.msg.startswith("Unterminated string")
 
 
-def read_json_object(path: str | os.PathLike, *, limit: int = MAX_RESULTS_BYTES, source: str | None = None) -> dict:
-    """Read a JSON object from ``path``, refusing files above ``limit`` bytes before reading them."""
-    path = Path(path)
-    source = source or str(path)
+def read_capped(path: Path, limit: int, source: str, too_big) -> bytes:
+    """The bytes of ``path``, refused by ``stat`` before reading when above ``limit`` and never reading more
+    than ``limit`` + 1 bytes; ``too_big(size)`` words the refusal (``size`` None: the file grew while read)."""
     try:
         size = path.stat().st_size
     except FileNotFoundError:
         raise ResultsError(f"{source}: no such file") from None
     except OSError as exc:
         raise ResultsError(f"{source}: cannot read: {exc.strerror or exc}") from None
-    if path.is_dir():
-        raise ResultsError(f"{source}: is a directory, not a JSON file")
     if size > limit:
-        raise ResultsError(f"{source}: file is {_megabytes(size)}, above the {_megabytes(limit)} limit; refusing to read it")
+        raise ResultsError(too_big(size))
     try:
         with open(path, "rb") as handle:
             data = handle.read(limit + 1)
     except OSError as exc:
         raise ResultsError(f"{source}: cannot read: {exc.strerror or exc}") from None
     if len(data) > limit:  # grew after stat, or a device/pipe
-        raise ResultsError(f"{source}: file is above the {_megabytes(limit)} limit; refusing to read it")
+        raise ResultsError(too_big(None))
+    return data
+
+
+def read_json_object(path: str | os.PathLike, *, limit: int = MAX_RESULTS_BYTES, source: str | None = None) -> dict:
+    """Read a JSON object from ``path``, refusing files above ``limit`` bytes before reading them."""
+    path = Path(path)
+    source = source or str(path)
+    if path.is_dir():
+        raise ResultsError(f"{source}: is a directory, not a JSON file")
+    data = read_capped(path, limit, source, lambda size: f"{source}: file is {'' if size is None else _megabytes(size) + ', '}"
+                       f"above the {_megabytes(limit)} limit; refusing to read it")
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:

@@ -12,6 +12,10 @@ submitted text stays text. State lives in the URL hash, e.g.
 ``index.html#robot=go2&backend=mujoco&family=stairs&sort=gap&dir=asc&record=<id>``.
 """
 
+from frbench.leaderboard.page_style import PAGE_STYLE
+
+__all__ = ["PAGE_SCRIPT", "PAGE_STYLE", "PAGE_TEMPLATE"]
+
 PAGE_TEMPLATE = """<!DOCTYPE html>
 <html lang="en">
 <head>
@@ -72,50 +76,6 @@ cells and episodes; shown with no filter or one filter). Click a row for its pro
 <script>@SCRIPT@</script>
 </body>
 </html>
-"""
-
-PAGE_STYLE = """
-:root { --fg: #1d232a; --muted: #5b6570; --line: #d8dde3; --head: #f3f5f7; --sel: #fff4cc; --accent: #1f6feb; }
-* { box-sizing: border-box; }
-body { margin: 0; font: 14px/1.45 system-ui, -apple-system, "Segoe UI", Roboto, "DejaVu Sans", sans-serif; color: var(--fg); background: #fff; }
-header, main { max-width: 1400px; margin: 0 auto; padding: 0 20px; }
-header h1 { margin: 18px 0 4px; font-size: 24px; }
-header p, .note { color: var(--muted); margin: 4px 0 10px; }
-h2 { font-size: 18px; margin: 22px 0 6px; }
-code { font-family: ui-monospace, "DejaVu Sans Mono", monospace; font-size: 12.5px; }
-#filters { display: flex; flex-wrap: wrap; gap: 14px; align-items: center; padding: 10px 12px; margin: 10px 0; background: var(--head); border: 1px solid var(--line); border-radius: 6px; }
-#filters label { font-weight: 600; }
-select, button { font: inherit; margin-left: 4px; padding: 2px 6px; }
-.scroll { overflow-x: auto; }
-table.board { border-collapse: collapse; width: 100%; font-variant-numeric: tabular-nums; }
-table.board th, table.board td { border-bottom: 1px solid var(--line); padding: 5px 7px; text-align: left; white-space: nowrap; }
-table.board th { background: var(--head); position: sticky; top: 0; }
-table.board th button { all: unset; cursor: pointer; font-weight: 600; }
-table.board th button:focus-visible { outline: 2px solid var(--accent); }
-table.board th[aria-sort="ascending"] button::after { content: " \\25B2"; font-size: 10px; }
-table.board th[aria-sort="descending"] button::after { content: " \\25BC"; font-size: 10px; }
-table.board td.num, table.board th.num { text-align: right; }
-table.board td.id { font-family: ui-monospace, "DejaVu Sans Mono", monospace; color: var(--muted); }
-table.board tbody tr { cursor: pointer; }
-table.board tbody tr:hover td { outline: none; filter: brightness(0.97); }
-table.board tbody tr[aria-selected="true"] td { background: var(--sel) !important; }
-table.board td.off { color: #aab2bb; }
-.empty { color: var(--muted); font-style: italic; }
-#details { border: 1px solid var(--line); border-radius: 6px; padding: 4px 16px 12px; margin: 16px 0; background: #fbfcfd; }
-.details-head { display: flex; justify-content: space-between; align-items: center; }
-#details dl { display: grid; grid-template-columns: max-content 1fr; gap: 3px 16px; margin: 6px 0; }
-#details dt { font-weight: 600; color: var(--muted); }
-#details dd { margin: 0; overflow-wrap: anywhere; }
-#details pre { background: var(--head); padding: 8px; border-radius: 4px; max-height: 260px; overflow: auto; margin: 0; font-size: 12px; }
-#details table { border-collapse: collapse; }
-#details table td { padding: 1px 10px 1px 0; font-family: ui-monospace, "DejaVu Sans Mono", monospace; font-size: 12px; }
-#charts { display: flex; flex-wrap: wrap; gap: 12px; }
-#charts figure { margin: 0; border: 1px solid var(--line); border-radius: 6px; padding: 6px; }
-#charts figcaption { font-weight: 600; text-align: center; }
-#charts svg text { font-size: 11px; fill: var(--muted); }
-#legend { display: flex; flex-wrap: wrap; gap: 6px 16px; margin: 6px 0 10px; }
-#legend span.key { display: inline-flex; align-items: center; gap: 6px; cursor: pointer; }
-#legend svg { flex: none; }
 """
 
 PAGE_SCRIPT = r"""
@@ -240,6 +200,11 @@ PAGE_SCRIPT = r"""
                get: function (x) { return x.iv && x.iv.signed_gap ? x.iv.signed_gap[0] : null; },
                show: function (x) { var g = x.iv && x.iv.signed_gap; return g ? signed(g[0]) + " (" + signed(g[1]) + ".." + signed(g[2]) + ")" : "\u2013"; }});
     cols.push({key: "cells", label: "Cells", num: true, dir: "desc", get: function (x) { return x.s.cells; }});
+    cols.push({key: "file", label: "Policy file", title: "the policy file attached to the record", dir: "asc",
+               get: function (x) { return x.r.policy_file ? "attached" : null; }});
+    cols.push({key: "verified", label: "Verified", title: "episodes re-run by frbench verify and reproduced", num: true, dir: "desc",
+               get: function (x) { return x.r.verified ? x.r.verified.sample : null; },
+               show: function (x) { var v = x.r.verified; return v ? "\u2713 " + v.sample + " (" + v.mode + ")" : "\u2013"; }});
     cols.push({key: "submitted", label: "Submitted", dir: "asc", get: function (x) { return x.r.submitted.slice(0, 10); }});
     cols.push({key: "id", label: "Record", dir: "asc", id: true, get: function (x) { return x.r.id.slice(0, 12); }});
     return cols;
@@ -371,6 +336,10 @@ PAGE_SCRIPT = r"""
     dlRow(dl, "Versions", keyTable(p.versions, function (v) { return v === null ? "\u2013" : v; }));
     dlRow(dl, "Checkpoint", p.policy.checkpoint === null ? "none (" + p.policy.name + ")" : p.policy.checkpoint);
     dlRow(dl, "Checkpoint sha256", p.policy.sha256);
+    dlRow(dl, "Policy file", rec.policy_file ? rec.policy_file + " (attached)" : "none attached");
+    var v = rec.verified;
+    dlRow(dl, "Verified", v ? v.sample + " episodes in " + v.cells + " cells re-run and reproduced (" + v.mode + ", sample seed " +
+          v.seed + ", " + v.policy + " policy, frbench " + v.frbench_commit.slice(0, 12) + ", " + v.verified + ")" : "not verified");
     dlRow(dl, "Robots (URDF sha256, source)", keyTable(p.robots, function (v) { return v.urdf_sha256 + "  " + v.source; }));
     dlRow(dl, "Seeds", p.config.seeds.join(", "));
     dlRow(dl, "Episodes", p.config.episodes + " per cell, " + rec.episodes + " scored");

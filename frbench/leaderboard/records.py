@@ -128,6 +128,15 @@ def build_record(results: dict, submission: dict) -> dict:
     return record
 
 
+def replace_record(path: Path, record: dict) -> None:
+    """Rewrite an existing record file atomically after checking the new content (its id cannot change)."""
+    from frbench.io import atomic_write_text
+
+    check_record(record, file_name=path.name)
+    atomic_write_text(path, record_text(record))
+    os.chmod(path, 0o644)
+
+
 def record_text(record: dict) -> str:
     """A record's file content (deterministic)."""
     return pretty_json(record) + "\n"
@@ -168,6 +177,10 @@ def check_record(record: Any, *, file_name: str | None = None) -> None:
     check_link(submission["link"], "submission.link")
     if submission["policy"] != results["policy"]["name"]:
         raise ResultsError(f"submission.policy: {submission['policy']!r} but results.policy.name is {results['policy']['name']!r}")
+    attached = record.get("policy_file")
+    if attached is not None and results["policy"]["sha256"] not in (None, attached["sha256"]):
+        raise ResultsError(f"policy_file.sha256: {attached['sha256']} is not the checkpoint the results were evaluated "
+                           f"with (results.policy.sha256 {results['policy']['sha256']})")
     track = track_of(results["cells"])
     if record["track"] != track:
         raise ResultsError(f"track: {record['track']!r} but its cells put it on the {track!r} track")
@@ -240,19 +253,20 @@ def _fsync_dir(folder: Path) -> None:
             os.close(fd)
 
 
-def create_exclusive(path: Path, text: str) -> None:
-    """Create ``path`` with ``text`` atomically; raise :class:`DuplicateRecord` if it exists.
+def create_exclusive(path: Path, text: str | bytes) -> None:
+    """Create ``path`` with ``text`` (UTF-8 text, or bytes) atomically; raise :class:`DuplicateRecord` if it exists.
 
     The text goes to a temporary file in the same folder, is synced, and is
     hard-linked to ``path`` (``link`` fails if ``path`` exists, and readers
     never see a partial file). On file systems without hard links it falls back
     to ``O_CREAT | O_EXCL``.
     """
+    data = text if isinstance(text, bytes) else text.encode("utf-8")
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=".incoming-", suffix=".tmp", dir=path.parent)
     try:
-        with os.fdopen(fd, "w", encoding="utf-8") as handle:
-            handle.write(text)
+        with os.fdopen(fd, "wb") as handle:
+            handle.write(data)
             handle.flush()
             os.fchmod(handle.fileno(), 0o644)
             os.fsync(handle.fileno())
@@ -267,8 +281,8 @@ def create_exclusive(path: Path, text: str) -> None:
                 out = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
             except FileExistsError:
                 raise DuplicateRecord(f"{path.name} exists") from None
-            with os.fdopen(out, "w", encoding="utf-8") as handle:
-                handle.write(text)
+            with os.fdopen(out, "wb") as handle:
+                handle.write(data)
                 handle.flush()
                 os.fsync(handle.fileno())
     except OSError as exc:
@@ -285,3 +299,5 @@ class Submission:
     record: dict
     path: Path
     written: bool
+    #: The results were a record already: only its policy file was attached.
+    attached_only: bool = False

@@ -1,0 +1,90 @@
+"""``frbench verify RECORD [--sample N] [--seed S]``: re-run a sample of a leaderboard record's episodes.
+
+RECORD is a record file (``leaderboard/records/<id>.json``) or a record id (or
+its first 8+ hex digits) in the leaderboard folder. The record is checked like
+``frbench leaderboard --check`` does; then ``--sample`` episodes drawn with
+``--seed`` are re-run with the record's policy and compared episode by episode
+(`frbench.leaderboard.verify`). Exit 0: every sampled episode reproduced; 1:
+a mismatch (the differences are listed), a replaced or missing policy file, or
+a record of another protocol version; 2: bad input. ``--save`` adds a passed
+verification to the record, which the board and page then mark.
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import sys
+from pathlib import Path
+
+from frbench.errors import FrbenchError
+
+ID_PREFIX = re.compile(r"^[0-9a-f]{8,64}$")
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add ``verify`` to the CLI."""
+    p = sub.add_parser(
+        "verify", help="re-run a sample of a leaderboard record's episodes and compare them",
+        description="Re-run a seeded random sample of a record's episodes from its provenance with its policy and compare "
+                    "them episode by episode: bit-identical where the library versions match, else within the stated "
+                    "tolerance. Exit 0: reproduced; 1: a mismatch; 2: bad input.")
+    p.add_argument("record", metavar="RECORD", help="a record file, or a record id (at least its first 8 hex digits)")
+    p.add_argument("--sample", type=int, default=8, help="episodes to re-run (default 8; each runs inside its whole cell)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the sample's random draw (default 0)")
+    p.add_argument("--tolerance", action="store_true",
+                   help="compare within the tolerance even where the versions match (e.g. a record made on other hardware)")
+    p.add_argument("--save", action="store_true", help="on a pass, add the verification to the record and regenerate the board")
+    p.add_argument("--root", default=None, help="leaderboard folder (default: the record's, else see `frbench leaderboard --help`)")
+    p.set_defaults(func=run)
+
+
+def _locate(text: str, root_option: str | None) -> tuple[Path, Path]:
+    """(record file, leaderboard folder) for RECORD."""
+    from frbench.leaderboard.paths import RECORDS, resolve_root
+
+    path = Path(text)
+    if ID_PREFIX.match(text) and not path.exists():
+        root = resolve_root(root_option)
+        matches = sorted((root / RECORDS).glob(f"{text}*.json"))
+        if len(matches) != 1:
+            found = "no record" if not matches else f"{len(matches)} records"
+            raise FrbenchError(f"record {text!r}: {found} in {root / RECORDS} with that id")
+        return matches[0], root
+    if root_option is not None:
+        return path, resolve_root(root_option)
+    return path, (path.parent.parent if path.parent.name == RECORDS else path.parent)
+
+
+def run(args: argparse.Namespace) -> int:
+    from frbench.leaderboard.board import add_verification
+    from frbench.leaderboard.records import load_record
+    from frbench.leaderboard.verify import RELATIVE_TOLERANCE, entry_of, verify
+
+    path, root = _locate(args.record, args.root)
+    record = load_record(path)
+    results = record["results"]
+    short = record["id"][:12]
+    total = len(results["episodes"])
+    print(f"record {short} ({record['submission']['name']}, protocol {results['protocol_version']}, {total} episodes)")
+    report = verify(record, root, sample=args.sample, seed=args.seed, tolerance=args.tolerance,
+                    progress=lambda key: print(f"  re-ran cell {' '.join(map(str, key))}", file=sys.stderr))
+    if report.policy:
+        print(f"policy: {report.policy_kind} {report.policy}")
+    for note in report.notes:
+        print(f"note: {note}")
+    if report.sample:
+        how = ("bit-identical (the record's library versions are these)" if report.mode == "exact" else
+               f"within tolerance: discrete outcomes equal, time_to_recover within one control period, other metrics "
+               f"within {RELATIVE_TOLERANCE:g} relative")
+        print(f"sample: {len(report.sample)} of {total} episodes (seed {args.seed}) in {report.cells} cells, compared {how}")
+    for failure in report.failures:
+        print(f"mismatch: {failure}")
+    if not report.ok:
+        print(f"frbench verify: record {short} does NOT verify ({len(report.failures)} problem(s) above)")
+        return 1
+    print(f"frbench verify: record {short} verified: {len(report.sample)} of {len(report.sample)} sampled episodes reproduced")
+    if args.save:
+        add_verification(root, path, entry_of(report))
+        print(f"wrote the verification into {path}; commit it with {root / 'README.md'} and {root / 'index.html'}")
+    return 0

@@ -1,0 +1,213 @@
+"""Re-run a seeded random sample of a record's episodes from its provenance and compare them episode by episode.
+
+A record keeps every episode with the config, versions, commit and checksums
+that produced it, and evaluation is deterministic, so a sampled episode can be
+run again and compared:
+
+1. the sample: ``sample`` episodes drawn without replacement by
+   ``numpy.random.default_rng(seed)``; each is re-run inside its whole cell (all
+   ``config.episodes`` episodes side by side, as ``frbench evaluate`` ran them,
+   with `frbench.evaluation.runner.run_cell`);
+2. the policy (:func:`resolve_policy`): the record's attached policy file
+   (``attached``, its sha256 checked first: a replaced file fails), else a
+   checkpoint shipped with frbench whose sha256 is the results' one
+   (``shipped``), else a built-in policy by name (``built-in``: code in frbench,
+   re-run with this checkout's code; a record made at another commit reproduces
+   only where that code did not change);
+3. the comparison (:func:`compare_episode`): ``exact`` when the record's library
+   versions equal this installation's (every field bit-identical), else
+   ``tolerance``: discrete outcomes (success, rollover, divergence, initial
+   pose, start redraws) equal, ``time_to_recover`` within one control period
+   and the continuous metrics within :data:`RELATIVE_TOLERANCE`; every
+   difference is listed.
+
+A record of another protocol version cannot be re-run by this frbench and does
+not verify; nor does one whose policy file is missing or replaced.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import defaultdict
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from frbench.errors import FrbenchError
+from frbench.tasks.protocol import CONTROL_DT, PROTOCOL_VERSION
+
+#: Relative tolerance on continuous episode metrics when library versions differ.
+RELATIVE_TOLERANCE = 1e-3
+#: Episode fields that must be equal in both modes.
+DISCRETE_FIELDS = ("initial_pose", "start_redraws", "success", "rolled_over", "diverged")
+CELL_FIELDS = ("robot", "backend", "terrain", "level", "seed")
+
+
+@dataclass
+class Verification:
+    """What :func:`verify` found; ``ok`` when nothing failed."""
+
+    record_id: str
+    protocol_version: str
+    seed: int = 0
+    policy: str = ""
+    policy_kind: str = ""
+    mode: str = "exact"
+    sample: list[int] = field(default_factory=list)
+    cells: int = 0
+    notes: list[str] = field(default_factory=list)
+    failures: list[str] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return bool(self.sample) and not self.failures
+
+
+def sample_indices(total: int, sample: int, seed: int) -> list[int]:
+    """``min(sample, total)`` distinct episode indices from ``numpy.random.default_rng(seed)``, sorted."""
+    if sample < 1:
+        raise FrbenchError(f"--sample {sample}: expected at least 1 episode")
+    if not 0 <= seed <= 2**32 - 1:
+        raise FrbenchError(f"--seed {seed}: expected 0 to 4294967295")
+    rng = np.random.default_rng(seed)
+    return sorted(int(i) for i in rng.choice(total, size=min(sample, total), replace=False))
+
+
+def _sha256(path: Path) -> str:
+    from frbench.io import sha256_file
+
+    return sha256_file(path)
+
+
+def resolve_policy(record: dict, root: Path, report: Verification) -> str | None:
+    """The policy reference to re-run (None after adding a failure); see the module doc for the order."""
+    from frbench.leaderboard.policy_files import stored_problems
+    from frbench.policies.registry import BUILTIN_POLICIES, SHIPPED_CHECKPOINTS, shipped_checkpoint
+
+    results = record["results"]
+    recorded = results["policy"]["sha256"]
+    attached = record.get("policy_file")
+    if attached is not None:
+        problems = stored_problems(root, attached)
+        if problems:
+            report.failures += problems
+            return None
+        report.policy_kind = "attached"
+        path = root / attached["file"]
+        requested = results["config"]["policy"]
+        attribute = requested.rpartition(":")[2] if path.suffix == ".py" and ":" in requested else ""
+        return f"{path}:{attribute}" if attribute else str(path)
+    if recorded is not None:
+        for name in SHIPPED_CHECKPOINTS:
+            path = shipped_checkpoint(name)
+            if path.is_file() and _sha256(path) == recorded:
+                report.policy_kind = "shipped"
+                return name
+    name = results["policy"]["name"]
+    if name in BUILTIN_POLICIES and results["config"]["policy"] == name:
+        report.policy_kind = "built-in"
+        commit = results["frbench"]["git_commit"]
+        report.notes.append(f"policy {name!r} is code in frbench: re-run with this checkout's code (the record ran at "
+                            f"commit {commit[:12]})")
+        return name
+    raise FrbenchError(
+        f"record {record['id'][:12]}: its policy {name!r} is neither attached, shipped with frbench nor built in; "
+        "nothing to re-run (attach it with `frbench submit RESULTS --policy-file FILE`)"
+    )
+
+
+def _same(key: str, a, b, exact: bool) -> bool:
+    if exact:
+        return a == b and type(a) is type(b)
+    numbers = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in (a, b))
+    if key == "time_to_recover" and numbers:
+        return abs(a - b) <= CONTROL_DT + 1e-9
+    if key not in DISCRETE_FIELDS and isinstance(a, float) and isinstance(b, float):
+        return math.isclose(a, b, rel_tol=RELATIVE_TOLERANCE, abs_tol=1e-9)
+    return a == b
+
+
+def compare_episode(recorded: dict, fresh: dict, exact: bool) -> list[str]:
+    """The fields where a re-run episode differs from the recorded one (``field recorded -> re-run``)."""
+    differences = []
+    for key in sorted(set(recorded) | set(fresh)):
+        a, b = recorded.get(key, "(absent)"), fresh.get(key, "(absent)")
+        if not _same(key, a, b, exact):
+            differences.append(f"{key} {a!r} -> {b!r}")
+    return differences
+
+
+def _describe(episode: dict) -> str:
+    return " ".join(str(episode[k]) for k in CELL_FIELDS[:3]) + f" level {episode['level']} seed {episode['seed']} episode {episode['episode']}"
+
+
+def verify(record: dict, root: Path, *, sample: int = 8, seed: int = 0, tolerance: bool = False,
+           progress=None) -> Verification:
+    """Re-run ``sample`` of the (already checked) ``record``'s episodes and compare them."""
+    from frbench.evaluation.provenance import library_versions
+    from frbench.evaluation.runner import Cell, run_cell
+
+    results = record["results"]
+    report = Verification(record["id"], results["protocol_version"], seed)
+    episodes = results["episodes"]
+    indices = sample_indices(len(episodes), sample, seed)
+    if results["protocol_version"] != PROTOCOL_VERSION:
+        report.failures.append(
+            f"the record ran under protocol {results['protocol_version']}, this frbench runs protocol {PROTOCOL_VERSION}: "
+            f"its episodes cannot be reproduced here (verify it with frbench at commit {results['frbench']['git_commit'][:12]})"
+        )
+        return report
+    reference = resolve_policy(record, root, report)
+    if reference is None:
+        return report
+    report.policy = reference
+    versions = library_versions()
+    changed = {k: (v, versions.get(k)) for k, v in results["versions"].items() if versions.get(k) != v}
+    report.mode = "tolerance" if tolerance or changed else "exact"
+    for name, (then, now) in sorted(changed.items()):
+        report.notes.append(f"version of {name}: {then} in the record, {now} here")
+    _note_robot_changes(results, report)
+    by_cell: dict[tuple, list[dict]] = defaultdict(list)
+    for index in indices:
+        by_cell[tuple(episodes[index][k] for k in CELL_FIELDS)].append(episodes[index])
+    started = time.monotonic()
+    for key, wanted in sorted(by_cell.items(), key=lambda item: tuple(map(str, item[0]))):
+        fresh = run_cell(Cell(*key, results["config"]["episodes"]), reference, results["config"]["noise"])
+        by_episode = {e["episode"]: e for e in fresh}
+        for episode in wanted:
+            differences = compare_episode(episode, by_episode.get(episode["episode"], {}), report.mode == "exact")
+            if differences:
+                report.failures.append(f"{_describe(episode)}: {'; '.join(differences)}")
+        if progress:
+            progress(key)
+    report.sample = indices
+    report.cells = len(by_cell)
+    report.notes.append(f"re-ran {len(by_cell)} cells in {time.monotonic() - started:.1f} s")
+    return report
+
+
+def _note_robot_changes(results: dict, report: Verification) -> None:
+    """Note robots whose URDF differs from the one the record evaluated (its checksum)."""
+    from frbench.robots import get_robot
+    from frbench.robots.sim_urdf import sim_robot_file
+
+    for name, entry in sorted(results["robots"].items()):
+        sim = sim_robot_file(get_robot(name))
+        if sim.source_sha256 != entry["urdf_sha256"]:
+            report.notes.append(f"robot {name}: URDF sha256 {sim.source_sha256[:16]}... here, "
+                                f"{entry['urdf_sha256'][:16]}... in the record")
+
+
+def entry_of(report: Verification) -> dict:
+    """The record's ``verifications`` item for a passed verification."""
+    from frbench.evaluation.provenance import frbench_info
+
+    info = frbench_info()
+    return {
+        "verified": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        "sample": len(report.sample), "cells": report.cells, "seed": report.seed, "mode": report.mode,
+        "policy": report.policy_kind, "protocol_version": report.protocol_version,
+        "frbench_commit": info["git_commit"], "frbench_dirty": info["git_dirty"],
+    }
