@@ -19,7 +19,7 @@ import torch
 from common import timed
 
 from frbench.training.env import RecoveryTrainingEnv, TrainEnvConfig
-from frbench.training.rewards import humanoid_reward_config
+from frbench.training.reward_tables import humanoid_reward_config
 
 
 def env_rate(backend: str, envs: int, seconds: float) -> float:

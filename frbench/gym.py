@@ -70,7 +70,8 @@ REWARD_PRESETS = ("training", "paper")
 def reward_config(reward, kind: str):
     """The `RewardConfig` of preset ``reward`` (``"training"``: the trainer's table for robots of ``kind``;
     ``"paper"``: the paper's) or ``reward`` itself if it is one."""
-    from frbench.training.rewards import RewardConfig, reward_table
+    from frbench.training.reward_tables import reward_table
+    from frbench.training.rewards import RewardConfig
 
     if isinstance(reward, RewardConfig):
         return reward

@@ -10,7 +10,7 @@ import pytest
 import frbench.gym  # noqa: F401  (registers)
 from frbench.gym import ACTION_SCALE, ENV_ID, observation_bounds, reward_config
 from frbench.robots import get_robot
-from frbench.training.rewards import training_reward_config
+from frbench.training.reward_tables import training_reward_config
 
 
 def test_gymnasium_check_env_passes_with_warnings_as_errors():

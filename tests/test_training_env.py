@@ -10,7 +10,8 @@ import torch
 
 from frbench.errors import FrbenchError, PolicyError
 from frbench.training.env import RecoveryTrainingEnv, TrainEnvConfig
-from frbench.training.rewards import PAPER_WEIGHTS, training_reward_config
+from frbench.training.reward_tables import training_reward_config
+from frbench.training.rewards import PAPER_WEIGHTS
 
 
 @pytest.fixture(scope="module")

@@ -47,7 +47,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 def reward_weight_changes(motion_penalties: float | None, assignments: list[str]) -> dict[str, float]:
     """Reward term → weight from ``--motion-penalties SCALE`` and ``--reward-weight TERM=WEIGHT`` (validated)."""
     from frbench.errors import FrbenchError
-    from frbench.training.rewards import MOTION_PENALTY_TERMS, PAPER_WEIGHTS, check_weights
+    from frbench.training.reward_tables import MOTION_PENALTY_TERMS
+    from frbench.training.rewards import PAPER_WEIGHTS, check_weights
 
     weights = {}
     if motion_penalties is not None:
@@ -116,7 +117,7 @@ def new_run_config(args, command: str, weights: dict[str, float], ranges: dict):
     from frbench.errors import FrbenchError, unknown_name
     from frbench.training.config import TrainEnvConfig
     from frbench.training.presets import PRESETS
-    from frbench.training.rewards import reward_table
+    from frbench.training.reward_tables import reward_table
 
     if args.preset not in PRESETS:
         raise unknown_name("preset", args.preset, PRESETS)

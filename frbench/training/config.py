@@ -4,7 +4,7 @@ A config is built once (by `frbench train`, a preset, a test) and never
 changed: ``dataclasses.replace`` makes a new one, validated again. It checks
 itself in ``__post_init__`` (ValueError naming the field and what was
 expected), so a bad value fails before a simulator starts, whoever builds it.
-The reward table defaults to the robot kind's (`rewards.reward_table`): a G1
+The reward table defaults to the robot kind's (`reward_tables.reward_table`): a G1
 trains on the humanoid table without anyone asking for it.
 
 ``to_dict``/``from_dict`` are its JSON form in a run's ``config.json`` and in
@@ -22,6 +22,7 @@ from typing import Mapping
 
 from frbench.policies.scripted_humanoid import DEFAULT_GATE_PHASES
 from frbench.terrains import FAMILIES
+from frbench.training.reward_tables import reward_table
 from frbench.training.rewards import RewardConfig
 
 #: Gain ranges of frbench's training (the paper: Kp [20, 80], Kd [0.6, 2.0]); see docs/training.md.
@@ -60,7 +61,7 @@ class TrainEnvConfig:
     #: Rows of the paper's morphology table replaced for this run, field → (low, high) [kg or m]
     #: (``morphology.morphology_ranges``); empty: the paper's table.
     morphology_ranges: Mapping[str, tuple[float, float]] = field(default_factory=lambda: MappingProxyType({}))
-    #: The reward table; None: the robot kind's (`rewards.reward_table`), filled in at construction.
+    #: The reward table; None: the robot kind's (`reward_tables.reward_table`), filled in at construction.
     reward: RewardConfig | None = None
     history: int = 5
     #: Frames of the ``long_history`` group (RMA's adaptation module reads 50); 0: no such group.
@@ -111,8 +112,6 @@ class TrainEnvConfig:
              MappingProxyType({str(k): v for k, v in dict(self.base_controller_parameters).items()}))
         self._validate()
         if self.reward is None:
-            from frbench.training.rewards import reward_table
-
             set_("reward", reward_table(self.robot_kind()))
 
     def robot_kind(self) -> str:

@@ -79,6 +79,8 @@ from typing import Callable, Mapping
 
 import numpy as np
 
+from frbench.training.reward_inputs import RewardInputs
+
 __all__ = [
     "DEFAULT_EPSILON",
     "DEFAULT_VELOCITY_THRESHOLD",
@@ -94,10 +96,6 @@ __all__ = [
     "body_contact",
     "check_weights",
     "compute_rewards",
-    "humanoid_reward_config",
-    "reward_table",
-    "training_reward_config",
-    "with_joint_velocity_limits",
     "feet_contact",
     "feet_on_ground",
     "head_height",
@@ -140,86 +138,6 @@ PAPER_WEIGHTS: dict[str, float] = {
 #: The paper's "Stability Control" terms, which an ablation drops.
 STABILITY_TERMS: tuple[str, ...] = ("safety_force", "body_bias")
 stability_terms = STABILITY_TERMS
-
-
-@dataclass
-class RewardInputs:
-    """What the reward terms read at one control step; arrays with N rows, SI units.
-
-    Attributes:
-        projected_gravity: (N, 3) unit gravity direction in the body frame; (0, 0, −1) upright.
-        q: (N, J) joint angles [rad].
-        qd: (N, J) joint velocities [rad/s].
-        qd_prev: (N, J) joint velocities one control step earlier [rad/s].
-        tau: (N, J) applied torques [N·m].
-        action: (N, J) policy action a_t (offset units, whatever the policy emits).
-        action_prev: (N, J) the previous action a_{t−1}.
-        q_stand: (J,) or (N, J) target standing posture [rad].
-        q_lower, q_upper: (J,) or (N, J) joint position limits [rad].
-        foot_contact: (N, F) bool, each foot touches something.
-        body_contact: (N,) bool, any non-foot link touches anything.
-        knee_force_xy: (N, K) horizontal contact force norm on each knee group [N].
-        base_xy: (N, 2) base position [m].
-        init_xy: (N, 2) base position at the episode start [m].
-        dt: control period [s].
-        base_height: (N,) base height above the terrain beneath it [m] (only
-            the frbench ``base_height`` term reads it).
-        nominal_height: (N,) or scalar standing base height [m].
-        head_height: (N,) head height above the terrain beneath it [m] (humanoid terms).
-        nominal_head_height: (N,) or scalar standing head height [m].
-        action_prev2: (N, J) the action before the previous one, a_{t−2} (``action_jerk``).
-        upper_body: (J,) bool, the joints of the waist and arms (``upper_body_posture``).
-    """
-
-    projected_gravity: np.ndarray
-    q: np.ndarray
-    qd: np.ndarray
-    qd_prev: np.ndarray
-    tau: np.ndarray
-    action: np.ndarray
-    action_prev: np.ndarray
-    q_stand: np.ndarray
-    q_lower: np.ndarray
-    q_upper: np.ndarray
-    foot_contact: np.ndarray
-    body_contact: np.ndarray
-    knee_force_xy: np.ndarray
-    base_xy: np.ndarray
-    init_xy: np.ndarray
-    dt: float = 0.02
-    base_height: np.ndarray | None = None
-    nominal_height: np.ndarray | float | None = None
-    head_height: np.ndarray | None = None
-    nominal_head_height: np.ndarray | float | None = None
-    action_prev2: np.ndarray | None = None
-    upper_body: np.ndarray | None = None
-
-    @property
-    def num_envs(self) -> int:
-        """N."""
-        return int(np.shape(self.projected_gravity)[0])
-
-    def check(self) -> None:
-        """Raise ``ValueError`` naming the first array whose shape does not fit (N, J) etc."""
-        n = self.num_envs
-        if np.shape(self.projected_gravity) != (n, 3):
-            raise ValueError(f"projected_gravity has shape {np.shape(self.projected_gravity)}, expected (N, 3)")
-        j = np.shape(self.q)[-1] if np.ndim(self.q) == 2 else -1
-        for name in ("q", "qd", "qd_prev", "tau", "action", "action_prev"):
-            if np.shape(getattr(self, name)) != (n, j):
-                raise ValueError(f"{name} has shape {np.shape(getattr(self, name))}, expected ({n}, {j})")
-        for name in ("q_stand", "q_lower", "q_upper"):
-            if np.shape(getattr(self, name)) not in ((j,), (n, j)):
-                raise ValueError(f"{name} has shape {np.shape(getattr(self, name))}, expected ({j},) or ({n}, {j})")
-        for name, shape in (("body_contact", (n,)), ("base_xy", (n, 2)), ("init_xy", (n, 2))):
-            if np.shape(getattr(self, name)) != shape:
-                raise ValueError(f"{name} has shape {np.shape(getattr(self, name))}, expected {shape}")
-        for name in ("foot_contact", "knee_force_xy"):
-            value = getattr(self, name)
-            if np.ndim(value) != 2 or np.shape(value)[0] != n:
-                raise ValueError(f"{name} has shape {np.shape(value)}, expected ({n}, k)")
-        if not (math.isfinite(self.dt) and self.dt > 0):
-            raise ValueError(f"dt must be positive, got {self.dt!r}")
 
 
 def _sum_sq(x: np.ndarray) -> np.ndarray:
@@ -520,93 +438,3 @@ def compute_rewards(inputs: RewardInputs, config: RewardConfig | None = None) ->
 
 # ---------------------------------------------------------------- frbench's training tables
 #: Why frbench's training rewards differ from the paper's table (see docs/training.md).
-MOTION_PENALTY_REASON = (
-    "x0.1: at the paper's weights the joint-velocity, -acceleration and torque penalties outweigh the upright "
-    "reward about 10:1 at the start of training; with ~10M steps on 2 CPU cores the policy then learns to lie "
-    "still instead of rolling over"
-)
-
-
-HEIGHT_REASON = (
-    "added (not in the paper), weight 6: with the paper's table alone, 2 M steps of training rolled robots onto "
-    "their bellies without ever rising (0 % success, target-posture reward 0); a term that pays for height, as in "
-    "MuJoCo Playground's getup task, gives the rise a gradient. At weight 2 lying belly-down (upright term full) "
-    "still earned about half of standing, and after 2.2 M steps policies let even standing starts collapse; at "
-    "weight 6 standing pays about twice lying on the belly"
-)
-
-SAFETY_FORCE_REASON = (
-    "x0.1: the knee force frbench measures is the net contact force on thigh and calf, which includes leg-on-leg "
-    "self-contact while the legs are folded (55-120 N on each knee during a scripted roll of Go2); at the paper's "
-    "weight it cost as much as the upright reward pays (-0.06 vs +0.09 per step at 2 M steps)"
-)
-
-
-#: Target-posture kernel width of frbench's training [rad²] (the paper: 1); see docs/training.md.
-POSTURE_SIGMA2 = 3.0
-
-
-#: The motion penalties `training_reward_config` scales (joint velocity, acceleration and torques).
-MOTION_PENALTY_TERMS = ("joint_velocity", "joint_acceleration", "joint_torques")
-#: Their scale relative to the paper's weights when a run starts (see `MOTION_PENALTY_REASON`).
-MOTION_PENALTY_SCALE = 0.1
-
-
-def training_reward_config() -> RewardConfig:
-    """The paper's reward table, motion and knee-force penalties x0.1, plus a base-height term (reasons recorded
-    in the config): the quadrupeds' training table."""
-    config = RewardConfig()
-    for term in MOTION_PENALTY_TERMS:
-        config = config.with_weight(term, MOTION_PENALTY_SCALE * PAPER_WEIGHTS[term], MOTION_PENALTY_REASON)
-    config = config.with_weight("safety_force", 0.1 * PAPER_WEIGHTS["safety_force"], SAFETY_FORCE_REASON)
-    config = config.with_weight("base_height", 6.0, HEIGHT_REASON)
-    return replace(config, posture_sigma2=POSTURE_SIGMA2)
-
-
-HUMANOID_REASONS = {
-    "feet_contact": "humanoids: replaced by feet_on_ground, which pays only once the base has risen (a G1 lying "
-                    "with its soles on the floor would otherwise be paid for it)",
-    "head_height": "humanoid term (HoST, HumanUP): pays for lifting the head, the signal of sitting and rising up",
-    "feet_on_ground": "humanoid term: both feet under the robot once it has risen",
-    "upper_body_posture": "humanoid term: waist and arms back to their standing pose once upright",
-    "action_jerk": "humanoid term: HoST's smoothness (second difference of the actions)",
-}
-
-
-def humanoid_reward_config() -> RewardConfig:
-    """frbench's quadruped training rewards plus the humanoid terms (each with its reason); see docs/training.md."""
-    config = training_reward_config().without(("feet_contact",), HUMANOID_REASONS["feet_contact"])
-    for term, weight in (("head_height", 2.0), ("feet_on_ground", 1.0), ("upper_body_posture", 1.0),
-                         ("action_jerk", -0.01)):
-        config = config.with_weight(term, weight, HUMANOID_REASONS[term])
-    return config
-
-#: The training table of each robot kind (`RobotSpec.kind`).
-REWARD_TABLES: Mapping[str, Callable[[], RewardConfig]] = {
-    "quadruped": training_reward_config,
-    "humanoid": humanoid_reward_config,
-}
-
-
-def reward_table(kind: str) -> RewardConfig:
-    """frbench's training reward table for a robot of ``kind`` (``"quadruped"`` or ``"humanoid"``)."""
-    if kind not in REWARD_TABLES:
-        raise ValueError(f"robot kind {kind!r}: no training reward table; known: {', '.join(REWARD_TABLES)}")
-    return REWARD_TABLES[kind]()
-
-
-def with_joint_velocity_limits(reward: RewardConfig, urdf_path, joint_names) -> RewardConfig:
-    """``reward`` with the velocity-limit threshold read as legged_gym does: 0.8 × each joint's URDF velocity
-    limit [rad/s] (30 where the URDF gives none); unchanged when the config sets its own threshold.
-
-    The paper writes max(|q̇| − 0.8, 0); FR-Net builds on legged_gym, whose ``dof_vel_limits`` reward uses
-    ``soft_dof_vel_limit = 0.8`` of the URDF limit. Read literally (0.8 rad/s) the term dominates every
-    other reward.
-    """
-    from frbench.robots.urdf_tree import parse_urdf
-
-    if reward.velocity_threshold != DEFAULT_VELOCITY_THRESHOLD:
-        return reward
-    joints = parse_urdf(urdf_path).joints
-    limits = [joints[name].velocity or 30.0 for name in joint_names]
-    return replace(reward, velocity_threshold=tuple(0.8 * v for v in limits))

@@ -4,7 +4,7 @@
 position) plus the actions the policy took, builds `rewards.RewardInputs` and sums the weighted terms of a
 `rewards.RewardConfig` (`rewards.compute_rewards`). The training env (`frbench.training.env`) and the Gymnasium
 envs (`frbench.gym`, ``reward="training"``) both call it, so a policy trained on either sees the same reward:
-the same table, the same velocity-limit threshold read from the URDF (`rewards.with_joint_velocity_limits`:
+the same table, the same velocity-limit threshold read from the URDF (`reward_tables.with_joint_velocity_limits`:
 0.8 × each joint's limit, 24.1 / 12.6 rad/s on Go2), the same standing heights and head point.
 
 `HeadPoints` is the humanoid's head: a point `HEAD_OFFSET_M` above the torso link's origin along its z axis, by
@@ -20,7 +20,8 @@ import numpy as np
 from frbench.backends.base import RobotState
 from frbench.robots import ground_truth
 from frbench.robots.spec import RobotSpec
-from frbench.training.rewards import RewardConfig, RewardInputs, compute_rewards, with_joint_velocity_limits
+from frbench.training.reward_tables import with_joint_velocity_limits
+from frbench.training.rewards import RewardConfig, RewardInputs, compute_rewards
 
 #: The humanoid's "head": a point this far [m] above the torso link's origin along its z axis (the G1's head
 #: centre stands about 1.23 m above flat ground in the default pose).
