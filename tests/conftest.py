@@ -27,6 +27,7 @@ def _isolated_config(tmp_path, monkeypatch):
 @pytest.fixture
 def quadruped_urdf_text() -> str:
     """A valid primitive quadruped URDF (the morphology generator's Go2-like default)."""
-    from frbench.robots.morphology import MorphologyParams, urdf_string
+    from frbench.robots.morphology import MorphologyParams
+    from frbench.robots.morphology_urdf import urdf_string
 
     return urdf_string(MorphologyParams(), name="testdog")

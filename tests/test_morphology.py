@@ -10,7 +10,9 @@ import numpy as np
 import pytest
 
 from frbench.robots import morphology as morph
-from frbench.robots.morphology import LITE3_LIKE, MORPHOLOGY_RANGES, SPOT_LIKE, MorphologyParams
+from frbench.robots import morphology_urdf as morph_urdf
+from frbench.robots.morphology import MORPHOLOGY_RANGES, MorphologyParams
+from frbench.robots.morphology_presets import LITE3_LIKE, SPOT_LIKE
 
 LEGS = ("FL", "FR", "RL", "RR")
 CANONICAL_JOINTS = tuple(f"{leg}_{part}_joint" for leg in LEGS for part in ("hip", "thigh", "calf"))
@@ -125,18 +127,18 @@ def _check_urdf_xml(text: str, p: MorphologyParams) -> None:
 
 def test_sampled_urdfs_have_valid_inertias_and_exact_mass():
     for p in _samples(0, 50):
-        _check_urdf_xml(morph.urdf_string(p), p)
+        _check_urdf_xml(morph_urdf.urdf_string(p), p)
 
 
 @pytest.mark.parametrize("case", sorted(PRESETS))
 def test_preset_urdfs_have_valid_inertias_and_exact_mass(case):
     p = PRESETS[case]
-    _check_urdf_xml(morph.urdf_string(p, name=case), p)
+    _check_urdf_xml(morph_urdf.urdf_string(p, name=case), p)
 
 
 def test_kinematic_layout():
     p = MorphologyParams()
-    root = ET.fromstring(morph.urdf_string(p))
+    root = ET.fromstring(morph_urdf.urdf_string(p))
     joints = {j.get("name"): j for j in root.findall("joint")}
     x, y = morph.hip_position(p)
     for leg, sx, sy in (("FL", 1, 1), ("FR", 1, -1), ("RL", -1, 1), ("RR", -1, -1)):
@@ -157,8 +159,8 @@ def test_kinematic_layout():
 
 
 def test_write_urdf(tmp_path):
-    path = morph.write_urdf(LITE3_LIKE, tmp_path / "sub" / "lite3.urdf", name="lite3")
-    assert path.read_text() == morph.urdf_string(LITE3_LIKE, name="lite3")
+    path = morph_urdf.write_urdf(LITE3_LIKE, tmp_path / "sub" / "lite3.urdf", name="lite3")
+    assert path.read_text() == morph_urdf.urdf_string(LITE3_LIKE, name="lite3")
     assert ET.parse(path).getroot().get("name") == "lite3"
 
 
@@ -169,7 +171,7 @@ def test_write_urdf(tmp_path):
 def test_pinocchio_mass_and_joints(case):
     pin = pytest.importorskip("pinocchio")
     p = CASES[case]
-    model = pin.buildModelFromXML(morph.urdf_string(p), pin.JointModelFreeFlyer())
+    model = pin.buildModelFromXML(morph_urdf.urdf_string(p), pin.JointModelFreeFlyer())
     assert model.nq == 19 and model.nv == 18
     assert tuple(model.names)[2:] == CANONICAL_JOINTS
     assert abs(pin.computeTotalMass(model) - _params_total(p)) < 1e-9
@@ -179,7 +181,7 @@ def test_pinocchio_mass_and_joints(case):
 def test_nominal_height_matches_pinocchio_kinematics(case):
     pin = pytest.importorskip("pinocchio")
     p = CASES[case]
-    model = pin.buildModelFromXML(morph.urdf_string(p), pin.JointModelFreeFlyer())
+    model = pin.buildModelFromXML(morph_urdf.urdf_string(p), pin.JointModelFreeFlyer())
     data = model.createData()
     q = pin.neutral(model)  # base at the origin, identity orientation
     q[7:] = morph.default_pose(p)
@@ -191,7 +193,7 @@ def test_nominal_height_matches_pinocchio_kinematics(case):
 def test_joint_sign_conventions():
     pin = pytest.importorskip("pinocchio")
     p = MorphologyParams()
-    model = pin.buildModelFromXML(morph.urdf_string(p), pin.JointModelFreeFlyer())
+    model = pin.buildModelFromXML(morph_urdf.urdf_string(p), pin.JointModelFreeFlyer())
     data = model.createData()
 
     def foot(leg: str, hip: float, thigh: float, calf: float) -> np.ndarray:
@@ -214,7 +216,7 @@ def test_joint_sign_conventions():
 def test_mujoco_loads_with_exact_mass(case):
     mujoco = pytest.importorskip("mujoco")
     p = CASES[case]
-    spec = mujoco.MjSpec.from_string(morph.urdf_string(p))
+    spec = mujoco.MjSpec.from_string(morph_urdf.urdf_string(p))
     spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
     spec.worldbody.first_body().add_freejoint()
     model = spec.compile()
@@ -230,7 +232,7 @@ def test_pybullet_loads_with_12_revolute_joints(case, tmp_path):
     from pybullet_utils import bullet_client
 
     p = CASES[case]
-    path = morph.write_urdf(p, tmp_path / f"{case}.urdf")
+    path = morph_urdf.write_urdf(p, tmp_path / f"{case}.urdf")
     client = bullet_client.BulletClient(pybullet.DIRECT)
     try:
         body = client.loadURDF(str(path), flags=pybullet.URDF_USE_INERTIA_FROM_FILE)
@@ -267,7 +269,7 @@ def test_preset_kinematics():
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_spec_from_params(case, tmp_path):
     p = CASES[case]
-    spec = morph.spec_from_params(p, f"morph_{case}", tmp_path / "m.urdf")
+    spec = morph_urdf.spec_from_params(p, f"morph_{case}", tmp_path / "m.urdf")
     assert spec.kind == "quadruped" and spec.physics_dt == 0.005
     assert spec.joint_names == CANONICAL_JOINTS
     assert len(spec.contact_groups) == 13 and len(spec.mass_groups) == 4 and len(spec.knee_groups) == 4
@@ -303,7 +305,7 @@ def test_invalid_params_raise_naming_the_field(field, value):
     with pytest.raises(ValueError, match=field):
         morph.validate(bad)
     with pytest.raises(ValueError, match=field):
-        morph.urdf_string(bad)
+        morph_urdf.urdf_string(bad)
 
 
 def test_inconsistent_limits_and_inertias_raise():
@@ -324,10 +326,10 @@ def test_a_trunk_com_shift_moves_the_com_alike_in_pinocchio_mujoco_and_pybullet(
     from frbench.robots.check import check_robot
 
     shift = (0.04, -0.03, 0.02)
-    plain = morph.cached_spec(MorphologyParams(), "plain", tmp_path / "plain.urdf")
-    shifted = morph.cached_spec(dataclasses.replace(MorphologyParams(), trunk_com_shift=shift), "shifted",
+    plain = morph_urdf.cached_spec(MorphologyParams(), "plain", tmp_path / "plain.urdf")
+    shifted = morph_urdf.cached_spec(dataclasses.replace(MorphologyParams(), trunk_com_shift=shift), "shifted",
                                 tmp_path / "shifted.urdf")
-    assert 'origin xyz="0 0 0"' in morph.urdf_string(MorphologyParams())  # unshifted URDFs unchanged
+    assert 'origin xyz="0 0 0"' in morph_urdf.urdf_string(MorphologyParams())  # unshifted URDFs unchanged
     pose = ([0.0, 0.0, 0.5], [1.0, 0.0, 0.0, 0.0], plain.default_pose)
     moved = ground_truth.center_of_mass(shifted, *pose) - ground_truth.center_of_mass(plain, *pose)
     total = ground_truth.total_mass(plain)

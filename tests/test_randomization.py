@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from frbench.backends.base import PhysicsParams
-from frbench.robots import morphology
+from frbench.robots import morphology, morphology_urdf
 from frbench.robots.morphology import MORPHOLOGY_RANGES, MorphologyParams
 from frbench.training import randomization as RD
 
@@ -113,7 +113,7 @@ def test_morphology_specs_distinct(tmp_path):
     assert len(set(masses)) == 64
     # the written file is the morphology's URDF, and its masses are the params'
     text = specs[5].urdf_path.read_text()
-    assert text == morphology.urdf_string(params[5], name=specs[5].name)
+    assert text == morphology_urdf.urdf_string(params[5], name=specs[5].name)
     assert repr(params[5].trunk_mass) in text
 
 

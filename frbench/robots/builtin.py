@@ -193,19 +193,20 @@ def g1() -> RobotSpec:
 
 
 def _morphology_robot(preset_name: str, name: str, source: str) -> RobotSpec:
-    from frbench.robots import morphology
+    from frbench.robots import morphology_presets
+    from frbench.robots.morphology_urdf import cached_spec
 
-    params = getattr(morphology, preset_name)
-    return morphology.cached_spec(params, name, cache_dir() / "morphology" / f"{name}.urdf", source=source)
+    params = getattr(morphology_presets, preset_name)
+    return cached_spec(params, name, cache_dir() / "morphology" / f"{name}.urdf", source=source)
 
 
 def spot_like() -> RobotSpec:
-    """A Spot-like quadruped generated from published dimensions (see morphology.SPOT_LIKE)."""
+    """A Spot-like quadruped generated from published dimensions (see morphology_presets.SPOT_LIKE)."""
     return _morphology_robot("SPOT_LIKE", "spot_like", "frbench morphology generator, Spot published dimensions")
 
 
 def lite3_like() -> RobotSpec:
-    """A Lite3-like quadruped generated from published dimensions (see morphology.LITE3_LIKE)."""
+    """A Lite3-like quadruped generated from published dimensions (see morphology_presets.LITE3_LIKE)."""
     return _morphology_robot("LITE3_LIKE", "lite3_like", "frbench morphology generator, Lite3 published dimensions")
 
 

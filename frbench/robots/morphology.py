@@ -62,7 +62,8 @@ outside them).
   x and z swapped). Its joint limits are converted to Go2's sign convention; its
   calf, a Ø0.030 cylinder, becomes a 0.03 × 0.03 box.
 
-Units are SI throughout: metres, kilograms, radians, newton-metres, seconds.
+Units are SI throughout: metres, kilograms, radians, newton-metres, seconds. A morphology's URDF and
+`RobotSpec` are written by `frbench.robots.morphology_urdf`.
 """
 
 from __future__ import annotations
@@ -70,31 +71,25 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
-from frbench.robots.spec import QUADRUPED_LEGS, RobotSpec, quadruped_groups
+from frbench.robots.spec import QUADRUPED_LEGS
 
 __all__ = [
     "FOOT_LINKS",
     "HIP_X_MARGIN",
     "JOINT_NAMES",
-    "LITE3_LIKE",
     "MORPHOLOGY_RANGES",
     "MorphologyParams",
-    "SPOT_LIKE",
     "default_pose",
     "hip_position",
     "joint_limits",
     "morphology_ranges",
     "nominal_height",
     "sample",
-    "spec_from_params",
     "total_mass",
-    "urdf_string",
     "validate",
-    "write_urdf",
 ]
 
 #: FR-Net's morphology randomisation ranges (paper, Table "Domain randomization
@@ -381,7 +376,7 @@ def hip_position(params: MorphologyParams) -> tuple[float, float]:
     return float(x), float(y)
 
 
-def _leg_signs(leg: str) -> tuple[float, float]:
+def leg_signs(leg: str) -> tuple[float, float]:
     """(x sign, y sign) of a leg prefix: F → +x, R(ear) → −x, L → +y, R(ight) → −y."""
     return (1.0 if leg[0] == "F" else -1.0), (1.0 if leg[1] == "L" else -1.0)
 
@@ -390,7 +385,7 @@ def default_pose(params: MorphologyParams) -> tuple[float, ...]:
     """Standing joint angles [rad], shape (12,), canonical order (hip mirrored on the right)."""
     pose: list[float] = []
     for leg in QUADRUPED_LEGS:
-        sx, sy = _leg_signs(leg)
+        sx, sy = leg_signs(leg)
         thigh = params.stand_thigh_front if sx > 0 else params.stand_thigh_rear
         pose += [sy * params.stand_hip + 0.0, thigh, params.stand_calf]  # + 0.0: no -0.0
     return tuple(float(q) for q in pose)
@@ -404,7 +399,7 @@ def joint_limits(params: MorphologyParams) -> tuple[tuple[float, ...], tuple[flo
     lower: list[float] = []
     upper: list[float] = []
     for leg in QUADRUPED_LEGS:
-        sx, sy = _leg_signs(leg)
+        sx, sy = leg_signs(leg)
         hip = (params.hip_lower, params.hip_upper) if sy > 0 else (-params.hip_upper, -params.hip_lower)
         if sx > 0:
             thigh = (params.thigh_front_lower, params.thigh_front_upper)
@@ -433,311 +428,3 @@ def nominal_height(params: MorphologyParams) -> float:
     if height <= 0:
         raise ValueError(f"standing pose puts the base {height:.3f} m above the ground; check stand_* fields")
     return height
-
-
-# --------------------------------------------------------------------------- inertia
-
-
-def box_inertia(mass: float, sx: float, sy: float, sz: float) -> Inertia3:
-    """Diagonal inertia [kg·m²] of a solid box of ``mass`` [kg] and sizes [m] about its centre."""
-    return (mass * (sy * sy + sz * sz) / 12, mass * (sx * sx + sz * sz) / 12, mass * (sx * sx + sy * sy) / 12)
-
-
-def cylinder_y_inertia(mass: float, radius: float, length: float) -> Inertia3:
-    """Diagonal inertia [kg·m²] of a solid cylinder with its axis along y, about its centre."""
-    across = mass * (3 * radius * radius + length * length) / 12
-    return (across, mass * radius * radius / 2, across)
-
-
-def sphere_inertia(mass: float, radius: float) -> Inertia3:
-    """Diagonal inertia [kg·m²] of a solid sphere about its centre."""
-    i = 0.4 * mass * radius * radius
-    return (i, i, i)
-
-
-# --------------------------------------------------------------------------- URDF
-
-
-def _num(x: float) -> str:
-    """Exact, round-tripping decimal text of ``x``."""
-    return repr(float(x))
-
-
-def _vec(*xs: float) -> str:
-    """Space-separated exact decimals."""
-    return " ".join(repr(float(x)) for x in xs)
-
-
-def _link(name: str, mass: float, centre: str, inertia: Inertia3, collision: str) -> str:
-    """A ``<link>`` with one inertial at ``centre`` (an ``"x y z"`` string) and one collision."""
-    ixx, iyy, izz = inertia
-    return (
-        f'  <link name="{name}">\n'
-        f'    <inertial>\n'
-        f'      <origin xyz="{centre}" rpy="0 0 0"/>\n'
-        f'      <mass value="{_num(mass)}"/>\n'
-        f'      <inertia ixx="{_num(ixx)}" ixy="0" ixz="0" iyy="{_num(iyy)}" iyz="0" izz="{_num(izz)}"/>\n'
-        f'    </inertial>\n'
-        f'    <collision>\n'
-        f'{collision}'
-        f'    </collision>\n'
-        f'  </link>\n'
-    )
-
-
-def _geometry(origin_xyz: str, shape: str, rpy: str = "0 0 0") -> str:
-    """A collision's ``<origin>`` and ``<geometry>`` lines."""
-    return f'      <origin xyz="{origin_xyz}" rpy="{rpy}"/>\n      <geometry><{shape}/></geometry>\n'
-
-
-def _joint(name: str, parent: str, child: str, xyz: str, axis: str | None = None,
-           limit: tuple[float, float, float, float] | None = None) -> str:
-    """A revolute joint (``axis`` and ``limit`` = (lower, upper, effort, velocity) given) or a fixed one."""
-    kind = "fixed" if axis is None else "revolute"
-    text = (
-        f'  <joint name="{name}" type="{kind}">\n'
-        f'    <origin xyz="{xyz}" rpy="0 0 0"/>\n'
-        f'    <parent link="{parent}"/>\n'
-        f'    <child link="{child}"/>\n'
-    )
-    if axis is not None and limit is not None:
-        lo, hi, effort, velocity = limit
-        text += (
-            f'    <axis xyz="{axis}"/>\n'
-            f'    <limit lower="{_num(lo)}" upper="{_num(hi)}" effort="{_num(effort)}" velocity="{_num(velocity)}"/>\n'
-        )
-    return text + "  </joint>\n"
-
-
-def _trunk(p: MorphologyParams) -> str:
-    """The ``base`` link: a box centred on the base frame, its centre of mass shifted by ``trunk_com_shift``."""
-    size = _vec(p.trunk_length, p.trunk_width, p.trunk_height)
-    inertia = p.trunk_inertia or box_inertia(p.trunk_mass, p.trunk_length, p.trunk_width, p.trunk_height)
-    centre = _vec(*p.trunk_com_shift) if any(p.trunk_com_shift) else "0 0 0"  # unshifted URDFs stay byte-identical
-    return _link("base", p.trunk_mass, centre, inertia, _geometry("0 0 0", f'box size="{size}"'))
-
-
-def _leg(p: MorphologyParams, leg: str, hip_xy: tuple[float, float],
-         lower: tuple[float, ...], upper: tuple[float, ...]) -> str:
-    """Links and joints of one leg; ``lower``/``upper`` are this leg's 3 joint limits."""
-    sx, sy = _leg_signs(leg)
-    hip, thigh, calf, foot = (f"{leg}_{part}" for part in ("hip", "thigh", "calf", "foot"))
-    hip_centre = _vec(0.0, sy * p.hip_length / 2, 0.0)
-    thigh_centre = _vec(0.0, 0.0, -p.thigh_length / 2)
-    calf_centre = _vec(0.0, 0.0, -p.calf_length / 2)
-    hip_inertia = p.hip_inertia or cylinder_y_inertia(p.hip_mass, p.hip_radius, p.hip_length)
-    thigh_inertia = p.thigh_inertia or box_inertia(p.thigh_mass, p.thigh_height, p.thigh_width, p.thigh_length)
-    calf_inertia = p.calf_inertia or box_inertia(p.calf_mass, p.calf_height, p.calf_width, p.calf_length)
-    thigh_box = f'box size="{_vec(p.thigh_height, p.thigh_width, p.thigh_length)}"'
-    calf_box = f'box size="{_vec(p.calf_height, p.calf_width, p.calf_length)}"'
-    cylinder = f'cylinder radius="{_num(p.hip_radius)}" length="{_num(p.hip_length)}"'
-    return "".join((
-        _joint(f"{hip}_joint", "base", hip, _vec(sx * hip_xy[0], sy * hip_xy[1], 0.0), "1 0 0",
-               (lower[0], upper[0], p.hip_torque, p.hip_velocity)),
-        _link(hip, p.hip_mass, hip_centre, hip_inertia, _geometry(hip_centre, cylinder, "1.5707963267948966 0 0")),
-        _joint(f"{thigh}_joint", hip, thigh, _vec(0.0, sy * p.hip_length, 0.0), "0 1 0",
-               (lower[1], upper[1], p.thigh_torque, p.thigh_velocity)),
-        _link(thigh, p.thigh_mass, thigh_centre, thigh_inertia, _geometry(thigh_centre, thigh_box)),
-        _joint(f"{calf}_joint", thigh, calf, _vec(0.0, 0.0, -p.thigh_length), "0 1 0",
-               (lower[2], upper[2], p.calf_torque, p.calf_velocity)),
-        _link(calf, p.calf_mass, calf_centre, calf_inertia, _geometry(calf_centre, calf_box)),
-        _joint(f"{foot}_joint", calf, foot, _vec(0.0, 0.0, -p.calf_length)),
-        _link(foot, p.foot_mass, "0 0 0", sphere_inertia(p.foot_mass, p.foot_radius),
-              _geometry("0 0 0", f'sphere radius="{_num(p.foot_radius)}"')),
-    ))
-
-
-def urdf_string(params: MorphologyParams, name: str = "morph") -> str:
-    """The URDF text of ``params``: primitives only (no meshes, no visuals).
-
-    Args:
-        params: the morphology (validated here).
-        name: the ``<robot name>``.
-
-    Returns:
-        A URDF with 17 links (``base`` + 4 × hip, thigh, calf, foot), 12 revolute
-        and 4 fixed joints; see the module docstring for the layout.
-    """
-    validate(params)
-    hip_xy = hip_position(params)
-    lower, upper = joint_limits(params)
-    parts = ['<?xml version="1.0"?>\n', f'<robot name="{name}">\n', _trunk(params)]
-    for i, leg in enumerate(QUADRUPED_LEGS):
-        parts.append(_leg(params, leg, hip_xy, lower[3 * i:3 * i + 3], upper[3 * i:3 * i + 3]))
-    parts.append("</robot>\n")
-    return "".join(parts)
-
-
-def write_urdf(params: MorphologyParams, path: str | Path, name: str = "morph") -> Path:
-    """Write :func:`urdf_string` of ``params`` to ``path`` (parents created); return the path."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(urdf_string(params, name=name), encoding="utf-8")
-    return path
-
-
-# --------------------------------------------------------------------------- RobotSpec
-
-
-def spec_from_params(
-    params: MorphologyParams,
-    name: str,
-    urdf_path: str | Path,
-    *,
-    source: str = "frbench morphology generator",
-    license: str = "BSD-3-Clause",
-) -> RobotSpec:
-    """The :class:`RobotSpec` of a generated quadruped.
-
-    Args:
-        params: the morphology.
-        name: registry name of the robot.
-        urdf_path: where :func:`write_urdf` wrote (or will write) its URDF.
-        source, license: provenance shown by ``frbench robots``.
-
-    Returns:
-        A quadruped spec with 12 joints in canonical order, 4 mass groups,
-        13 contact groups, physics_dt 0.005 s.
-    """
-    validate(params)
-    hips, thighs, calves = ([f"{leg}_{part}" for leg in QUADRUPED_LEGS] for part in ("hip", "thigh", "calf"))
-    mass_groups, contact_groups, knee_groups = quadruped_groups("base", tuple(hips), tuple(thighs), tuple(calves))
-    lower, upper = joint_limits(params)
-    shapes = tuple((h, "cylinder") for h in hips) + tuple((f, "sphere") for f in FOOT_LINKS)
-    return RobotSpec(
-        name=name,
-        kind="quadruped",
-        urdf_path=Path(urdf_path),
-        joint_names=JOINT_NAMES,
-        default_pose=default_pose(params),
-        kp=(float(params.kp),) * 12,
-        kd=(float(params.kd),) * 12,
-        torque_limits=(float(params.hip_torque), float(params.thigh_torque), float(params.calf_torque)) * 4,
-        joint_lower=lower,
-        joint_upper=upper,
-        foot_links=FOOT_LINKS,
-        mass_groups=mass_groups,
-        contact_groups=contact_groups,
-        knee_groups=knee_groups,
-        nominal_height=nominal_height(params),
-        physics_dt=0.005,
-        collision_shapes=shapes,
-        source=source,
-        license=license,
-        notes=f"primitive-geometry quadruped, total mass {total_mass(params):.3f} kg",
-    )
-
-
-def cached_spec(params: MorphologyParams, name: str, path: str | Path, **spec_kwargs) -> RobotSpec:
-    """Write ``params``' URDF to ``path`` unless it already holds that text (atomically), and return its spec.
-
-    ``spec_kwargs`` go to :func:`spec_from_params` (e.g. ``source``).
-    """
-    from frbench.io import atomic_write_text
-
-    path = Path(path)
-    text = urdf_string(params, name=name)
-    try:
-        current = path.read_text(encoding="utf-8")
-    except OSError:
-        current = None
-    if current != text:
-        atomic_write_text(path, text)
-    return spec_from_params(params, name, path, **spec_kwargs)
-
-
-# --------------------------------------------------------------------------- presets
-
-_SPOT_TOTAL_MASS = 32.5  # kg, manufacturer's spec sheet (see module docstring)
-_SPOT_HIP_MASS, _SPOT_THIGH_MASS, _SPOT_CALF_MASS, _SPOT_FOOT_MASS = 1.68, 2.34, 0.35, 0.04
-
-#: Spot-like quadruped: Menagerie ``spot.xml`` kinematics and leg masses, the
-#: spec sheet's 32.5 kg total (trunk 14.86 kg), estimated trunk box.
-SPOT_LIKE = MorphologyParams(
-    trunk_mass=_SPOT_TOTAL_MASS - 4 * (_SPOT_HIP_MASS + _SPOT_THIGH_MASS + _SPOT_CALF_MASS + _SPOT_FOOT_MASS),
-    trunk_length=0.892,
-    trunk_width=0.256,
-    trunk_height=0.205,
-    hip_mass=_SPOT_HIP_MASS,
-    hip_length=0.1108,
-    thigh_mass=_SPOT_THIGH_MASS,
-    thigh_length=0.321,
-    thigh_width=0.12,
-    thigh_height=0.10,
-    calf_mass=_SPOT_CALF_MASS,
-    calf_length=0.3365,
-    calf_width=0.046,
-    calf_height=0.074,
-    foot_radius=0.036,
-    foot_mass=_SPOT_FOOT_MASS,
-    hip_x=0.29785,
-    hip_y=0.055,
-    hip_torque=45.0,
-    thigh_torque=45.0,
-    calf_torque=113.2,  # upper end of the angle-dependent 30.6–113.2 N·m knee limit
-    hip_lower=-0.785,
-    hip_upper=0.785,
-    thigh_front_lower=-0.899,
-    thigh_front_upper=2.295,
-    thigh_rear_lower=-0.899,
-    thigh_rear_upper=2.295,
-    calf_lower=-2.793,
-    calf_upper=-0.254,
-    stand_hip=0.0,
-    stand_thigh_front=0.9,
-    stand_thigh_rear=1.1,
-    stand_calf=-1.5,
-    kp=150.0,  # published 60 sags 12 %; see frbench.robots.builtin on gains
-    kd=3.0,
-    hip_inertia=(0.00211474, 0.00181296, 0.00226544),
-    thigh_inertia=(0.0275596, 0.0273549, 0.00284815),
-    calf_inertia=(0.00399902, 0.00405032, 0.00014934),
-)
-
-#: Lite3-like quadruped: DeepRoboticsLab ``Lite3.urdf`` masses, collision boxes,
-#: kinematics and inertias.
-LITE3_LIKE = MorphologyParams(
-    trunk_mass=5.606,
-    trunk_length=0.50,
-    trunk_width=0.10,
-    trunk_height=0.12,
-    hip_mass=0.55,
-    hip_length=0.09735,
-    thigh_mass=0.86,
-    thigh_length=0.200,
-    thigh_width=0.045,
-    thigh_height=0.040,
-    calf_mass=0.153,
-    calf_length=0.210,
-    calf_width=0.03,
-    calf_height=0.03,
-    hip_radius=0.04,
-    foot_radius=0.022,
-    foot_mass=0.02,
-    hip_x=0.1745,
-    hip_y=0.062,
-    hip_torque=24.0,
-    thigh_torque=24.0,
-    calf_torque=36.0,
-    hip_velocity=26.2,
-    thigh_velocity=26.2,
-    calf_velocity=17.3,
-    hip_lower=-0.523,
-    hip_upper=0.523,
-    thigh_front_lower=-0.314,
-    thigh_front_upper=2.67,
-    thigh_rear_lower=-0.314,
-    thigh_rear_upper=2.67,
-    calf_lower=-2.792,
-    calf_upper=-0.524,
-    stand_hip=0.0,
-    stand_thigh_front=1.0,
-    stand_thigh_rear=1.0,
-    stand_calf=-1.8,
-    kp=60.0,  # published 20 sags 26 %; see frbench.robots.builtin on gains
-    kd=0.7,  # the published value; 1.5 makes the light calves' explicit PD chatter (kd·dt/I ≈ 2.2)
-    trunk_inertia=(0.02456, 0.05518, 0.07016),
-    hip_inertia=(0.0003949, 0.0004028, 0.0004472),
-    thigh_inertia=(0.005736, 0.004960, 0.001436),
-    calf_inertia=(0.00089039, 0.00090672, 3.1266e-05),
-)

@@ -55,7 +55,7 @@ from typing import Mapping
 import numpy as np
 
 from frbench.backends.base import PhysicsParams
-from frbench.robots import morphology
+from frbench.robots import morphology, morphology_urdf
 from frbench.robots.morphology import MorphologyParams
 from frbench.robots.spec import RobotSpec
 
@@ -216,10 +216,10 @@ def morphology_spec(params: MorphologyParams, name: str, cache_dir: str | Path |
         cache_dir: root folder of the cache.
 
     Returns:
-        ``morphology.spec_from_params(params, name, path)``.
+        ``morphology_urdf.spec_from_params(params, name, path)``.
     """
     root = _default_cache_dir() if cache_dir is None else Path(cache_dir)
-    return morphology.cached_spec(params, name, root / params_hash(params) / f"{name}.urdf")
+    return morphology_urdf.cached_spec(params, name, root / params_hash(params) / f"{name}.urdf")
 
 
 def morphology_specs(
