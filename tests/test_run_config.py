@@ -32,3 +32,21 @@ def test_config_json_is_written_once_per_run_and_not_again_on_resume(tmp_path, m
     assert len(writes) == 1
     TrainingRun(tmp_path / "g1", resume=True, reward_stage={"action_smoothing": -0.2}, command="stage")
     assert len(writes) == 2 and writes[1]["stages"][0]["weights"] == {"action_smoothing": -0.2}
+
+
+def test_set_values_are_parsed_by_the_field_types_not_their_text():
+    import pytest
+
+    from frbench.training.config import parse_field
+
+    assert parse_field("seed", "3") == 3 and isinstance(parse_field("seed", "3"), int)
+    assert parse_field("demo_start_until", "5e6") == 5e6
+    assert parse_field("families", "flat, stairs") == ("flat", "stairs")
+    assert parse_field("base_controller", "none") is None and parse_field("base_controller", "scripted") == "scripted"
+    assert parse_field("curriculum", "false") is False and parse_field("randomize", "1") is True
+    with pytest.raises(ValueError, match=r"--set seed=x: expected a number \(int\)"):
+        parse_field("seed", "x")
+    with pytest.raises(ValueError, match="--set reward: not a settable field"):
+        parse_field("reward", "1")
+    with pytest.raises(ValueError, match="--set curriculum=maybe: expected true or false"):
+        parse_field("curriculum", "maybe")

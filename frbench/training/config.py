@@ -16,6 +16,8 @@ reward table is the one the run recorded).
 from __future__ import annotations
 
 import dataclasses
+import types
+import typing
 from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Mapping
@@ -199,28 +201,38 @@ class TrainEnvConfig:
         return cls(**data)
 
 
+#: Fields that ``--set`` cannot write: the reward table and the mappings have flags or presets of their own.
+UNSETTABLE_FIELDS = ("reward", "gain_ranges", "morphology_ranges", "base_controller_parameters")
+
+
+def field_types() -> dict[str, object]:
+    """Config field → its type, resolved from the annotations (``typing.get_type_hints``), not their text."""
+    return typing.get_type_hints(TrainEnvConfig)
+
+
 def parse_field(name: str, text: str):
-    """The value of config field ``name`` written as ``text`` on a command line (``--set NAME=TEXT``): numbers,
-    ``true``/``false``, ``none``, comma-separated names for tuples, NAME=LOW,HIGH pairs are not accepted here."""
-    types = {f.name: f.type for f in dataclasses.fields(TrainEnvConfig)}
-    if name not in types or name in ("reward", "gain_ranges", "morphology_ranges", "base_controller_parameters"):
-        settable = sorted(set(types) - {"reward", "gain_ranges", "morphology_ranges", "base_controller_parameters"})
+    """The value of config field ``name`` written as ``text`` on a command line (``--set NAME=TEXT``), parsed by the
+    field's type: ``int``, ``float``, ``bool`` (``true``/``false``/``1``/``0``), ``str``, ``X | None`` (``none`` or
+    empty: None), ``tuple[str, ...]`` (comma-separated names). A ValueError names the field and what was expected."""
+    hints = field_types()
+    settable = sorted(set(hints) - set(UNSETTABLE_FIELDS))
+    if name not in settable:
         raise ValueError(f"--set {name}: not a settable field; expected one of {', '.join(settable)}")
-    kind = str(types[name])
-    text = text.strip()
-    if "None" in kind and text.lower() in ("none", ""):
-        return None
-    if kind.startswith("tuple"):
+    kind, text = hints[name], text.strip()
+    args = typing.get_args(kind)
+    if typing.get_origin(kind) in (typing.Union, types.UnionType) and type(None) in args:
+        if text.lower() in ("none", ""):
+            return None
+        kind = next(a for a in args if a is not type(None))
+    if typing.get_origin(kind) is tuple:
         return tuple(part.strip() for part in text.split(",") if part.strip())
-    if kind == "bool":
+    if kind is bool:
         if text.lower() not in ("true", "false", "1", "0"):
             raise ValueError(f"--set {name}={text}: expected true or false")
         return text.lower() in ("true", "1")
-    try:
-        if kind == "int":
-            return int(text)
-        if kind == "float":
-            return float(text)
-    except ValueError:
-        raise ValueError(f"--set {name}={text}: expected a number ({kind})") from None
+    if kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            raise ValueError(f"--set {name}={text}: expected a number ({kind.__name__})") from None
     return text
