@@ -135,7 +135,9 @@ def new_run_config(args, command: str, weights: dict[str, float], ranges: dict):
         fields["morphology_ranges"] = ranges
     for fraction, until in (("demo_start_fraction", "demo_start_until"), ("assist_force", "assist_until")):
         if fields.get(fraction, 0.0) > 0.0 and not fields.get(until):
-            fields[until] = args.steps / 2  # a schedule over the first half of the budget
+            fields[until] = args.steps / 2  # a schedule over the first half of the budget, said and recorded
+            print(f"{until} not set: the {fraction} schedule ends at half the budget, {fields[until]:.4g} env steps "
+                  f"(--set {until}=STEPS to choose; recorded in config.json)")
     if fields.get("base_controller") and "base_controller_parameters" not in fields:
         from frbench.policies.registry import base_controller_parameters
 
