@@ -54,6 +54,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from frbench.terrains import height_at
+from frbench.training.residual import DirectTargets
 from frbench.training.step_reward import HeadPoints, StepReward
 
 ENV_ID = "frbench/FallRecovery-v1"
@@ -127,6 +128,7 @@ class FallRecoveryVectorEnv(VectorEnv):
         self.episode_steps = EPISODE_STEPS
         n = spec.n_joints
         self.default_pose = np.asarray(spec.default_pose)
+        self.action_transform = DirectTargets(self.default_pose, self.action_scale)
         low, high = observation_bounds(spec)
         self.single_observation_space = gymnasium.spaces.Box(low, high, dtype=np.float32)
         self.single_action_space = gymnasium.spaces.Box(-1.0, 1.0, shape=(n,), dtype=np.float32)
@@ -144,9 +146,10 @@ class FallRecoveryVectorEnv(VectorEnv):
         return np.clip(flat, self.single_observation_space.low, self.single_observation_space.high).astype(np.float32)
 
     def targets(self, actions) -> np.ndarray:
-        """Joint targets q* (N, n_joints) [rad] of normalised actions (N, n_joints) (clipped to [−1, 1])."""
+        """Joint targets q* (N, n_joints) [rad] of normalised actions (N, n_joints) (clipped to [−1, 1]): the
+        training env's action transform (`frbench.training.residual.DirectTargets`)."""
         actions = np.clip(np.asarray(actions, dtype=np.float64).reshape(self.num_envs, -1), -1.0, 1.0)
-        return self.default_pose + self.action_scale * actions
+        return self.action_transform.targets(self.task.state, actions)
 
     def _reward(self, actions: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """The step's reward (N,) and weighted terms (`StepReward`, the trainer's), both 0 where diverged."""
