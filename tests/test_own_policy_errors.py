@@ -101,7 +101,9 @@ def test_a_wrong_sb3_model_and_a_missing_sb3_are_one_line(tmp_path, capsys, monk
         observation_space = gymnasium.spaces.Box(-1.0, 1.0, (40,), np.float32)
         action_space = gymnasium.spaces.Box(-1.0, 1.0, (12,), np.float32)
 
-    PPO("MlpPolicy", Forty(), n_steps=8, device="cpu", policy_kwargs={"net_arch": [8]}).save(tmp_path / "forty.zip")
+    PPO("MlpPolicy", Forty(), n_steps=8, batch_size=8, device="cpu", policy_kwargs={"net_arch": [8]}).save(
+        tmp_path / "forty.zip")
+    capsys.readouterr()
     err = _refused(tmp_path, capsys, str(tmp_path / "forty.zip"))
     assert "the model's observation space is (40,) float32, expected (42,) float32" in err
     assert "previous_target 12" in err  # the gym environment's layout

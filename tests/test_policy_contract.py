@@ -49,6 +49,8 @@ def test_spec_of_frnet_names_its_history_input_and_a_humanoid_frame_has_93_value
     assert _spec_json(capsys, "--robot", "g1")["frame_size"] == 6 + 3 * 29
     assert main(["spec", "--robot", "go2", "--policy", "scripted"]) == 2
     assert "has no layout" in capsys.readouterr().err
+    assert main(["spec", "--robot", "g1", "--policy", "frnet"]) == 2
+    assert "policy 'frnet' does not support robot 'g1' (humanoid)" in capsys.readouterr().err
 
 
 def test_the_spec_output_is_a_layout_file_and_layouts_round_trip(tmp_path, capsys):

@@ -25,14 +25,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def policy_layout(reference: str):
-    """The `PolicyLayout` a policy reads its observations with (`PolicyError` if it has none)."""
+def policy_layout(reference: str, spec):
+    """The `PolicyLayout` a policy reads its observations with on robot ``spec`` (`PolicyError` if it has none
+    or does not drive the robot)."""
     from frbench.errors import PolicyError
     from frbench.policies.contract import learned_layout
     from frbench.policies.learned import LearnedPolicy
     from frbench.policies.registry import load_policy
 
     policy = load_policy(reference)
+    if not policy.supports(spec):
+        raise PolicyError(f"policy {policy.name!r} does not support robot {spec.name!r} ({spec.kind})")
     if isinstance(policy, LearnedPolicy):
         return learned_layout(policy)
     if getattr(policy, "layout", None) is not None:
@@ -94,7 +97,7 @@ def run(args) -> int:
     if args.policy and args.spec:
         raise FrbenchError("--policy and --spec: give one of them")
     spec = get_robot(args.robot)
-    layout = read_layout(args.spec) if args.spec else policy_layout(args.policy) if args.policy else None
+    layout = read_layout(args.spec) if args.spec else policy_layout(args.policy, spec) if args.policy else None
     contract = contract_for(spec, layout)
     print(json.dumps(contract.to_dict(), indent=1) if args.json else contract_text(contract))
     return 0
