@@ -149,7 +149,7 @@ class FallRecoveryVectorEnv(VectorEnv):
         """Joint targets q* (N, n_joints) [rad] of normalised actions (N, n_joints) (clipped to [−1, 1]): the
         training env's action transform (`frbench.training.residual.DirectTargets`)."""
         actions = np.clip(np.asarray(actions, dtype=np.float64).reshape(self.num_envs, -1), -1.0, 1.0)
-        return self.action_transform.targets(self.task.state, actions)
+        return self.action_transform.targets(getattr(self.task, "state", None), actions)  # no state before a reset
 
     def _reward(self, actions: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """The step's reward (N,) and weighted terms (`StepReward`, the trainer's), both 0 where diverged."""
