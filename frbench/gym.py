@@ -54,14 +54,11 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from frbench.terrains import height_at
-from frbench.training.residual import DirectTargets
+from frbench.tasks.actions import ACTION_SCALE, DirectTargets
+from frbench.tasks.observations import observation_bounds
 from frbench.training.step_reward import HeadPoints, StepReward
 
 ENV_ID = "frbench/FallRecovery-v1"
-#: q* = q̊ + ACTION_SCALE · a, as the shipped policies (their checkpoints' and ONNX sidecars' action_scale).
-ACTION_SCALE = 1.0
-#: Observation bounds of the body angular velocity [rad/s] and joint velocities [rad/s] (values are clipped).
-MAX_ANGULAR_VELOCITY, MAX_JOINT_VELOCITY = 50.0, 50.0
 #: Frames per second of ``render`` videos (every second control step of 50 Hz).
 RENDER_FPS = 25
 #: Reward presets: name → function of the robot kind giving a `RewardConfig`.
@@ -81,16 +78,6 @@ def reward_config(reward, kind: str):
     if reward == "paper":
         return RewardConfig()
     raise ValueError(f"reward={reward!r}: expected one of {', '.join(REWARD_PRESETS)} or a RewardConfig")
-
-
-def observation_bounds(spec) -> tuple[np.ndarray, np.ndarray]:
-    """(low, high) of o_t, each (6 + 3·n_joints,) float32 (see the module docstring)."""
-    default = np.asarray(spec.default_pose)
-    lower, upper = np.asarray(spec.joint_lower) - default, np.asarray(spec.joint_upper) - default
-    n = spec.n_joints
-    high = np.concatenate([np.full(3, MAX_ANGULAR_VELOCITY), np.ones(3), upper, np.full(n, MAX_JOINT_VELOCITY), upper])
-    low = np.concatenate([np.full(3, -MAX_ANGULAR_VELOCITY), -np.ones(3), lower, np.full(n, -MAX_JOINT_VELOCITY), lower])
-    return low.astype(np.float32), high.astype(np.float32)
 
 
 class FallRecoveryVectorEnv(VectorEnv):
@@ -147,7 +134,7 @@ class FallRecoveryVectorEnv(VectorEnv):
 
     def targets(self, actions) -> np.ndarray:
         """Joint targets q* (N, n_joints) [rad] of normalised actions (N, n_joints) (clipped to [−1, 1]): the
-        training env's action transform (`frbench.training.residual.DirectTargets`)."""
+        training env's action transform (`frbench.tasks.actions.DirectTargets`)."""
         actions = np.clip(np.asarray(actions, dtype=np.float64).reshape(self.num_envs, -1), -1.0, 1.0)
         return self.action_transform.targets(getattr(self.task, "state", None), actions)  # no state before a reset
 

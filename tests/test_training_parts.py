@@ -15,7 +15,7 @@ from frbench.training.action_hold import HeldAction
 from frbench.training.assist import GRAVITY, AssistForce
 from frbench.training.config import TrainEnvConfig, parse_field
 from frbench.training.presets import PRESETS
-from frbench.training.residual import DirectTargets
+from frbench.tasks.actions import DirectTargets
 from frbench.training.reward_tables import humanoid_reward_config, reward_table, training_reward_config
 from frbench.training.start_sources import DemoStarts, RiseStarts
 

@@ -27,6 +27,7 @@ from pathlib import Path
 
 from frbench.errors import FrbenchError, ResultsError
 from frbench.io import sha256_file
+from frbench.policies.contract import sidecar_path
 
 #: Largest policy file (with its sidecar) a record may carry [bytes]: 16 MiB.
 MAX_POLICY_BYTES = 16 * 1024 * 1024
@@ -88,8 +89,8 @@ def read_policy_file(path: str | os.PathLike, label: str = "--policy-file") -> P
         raise ResultsError(f"{label}: {path}: the file name's suffix {path.suffix[:40]!r} is not allowed; "
                            "use at most 16 letters, digits, '_' or '-' after the dot (e.g. .pt, .onnx, .zip)")
     data = _read_capped(path, label, MAX_POLICY_BYTES)
-    sidecar_path = path.with_name(path.name + ".json")
-    sidecar = _read_capped(sidecar_path, label, MAX_POLICY_BYTES - len(data)) if sidecar_path.is_file() else None
+    sidecar = sidecar_path(path)
+    sidecar = _read_capped(sidecar, label, MAX_POLICY_BYTES - len(data)) if sidecar.is_file() else None
     return PolicyFile(data, _sha256(data), path.suffix, sidecar)
 
 

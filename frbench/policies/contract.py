@@ -354,3 +354,9 @@ def learned_layout(policy) -> PolicyLayout:
     inputs = tuple(LayoutInput(names.get(g, g), frames[g]) for g in policy.groups if g in frames)
     return PolicyLayout(inputs=inputs, action_scale=policy.action_scale, action_clip=10.0,
                         action_hold=policy.action_hold)
+
+
+def sidecar_path(model_path: Path) -> Path:
+    """``<file>.onnx.json`` beside ``<file>.onnx`` (never ``<file>.json``, which may be a results file): where a
+    model file's layout and conventions are written (`frbench.policies.export`) and read."""
+    return Path(model_path).with_name(Path(model_path).name + ".json")

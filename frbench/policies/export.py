@@ -18,14 +18,10 @@ import json
 from pathlib import Path
 
 from frbench.errors import PolicyError
+from frbench.policies.contract import sidecar_path
 
 #: Name of the dynamic batch axis of every input and output.
 BATCH_AXIS = "batch"
-
-
-def sidecar_path(onnx_path: Path) -> Path:
-    """``<file>.onnx.json`` beside ``<file>.onnx`` (never ``<file>.json``, which may be a results file)."""
-    return onnx_path.with_name(onnx_path.name + ".json")
 
 
 def onnx_module(policy):

@@ -22,7 +22,7 @@ import numpy as np
 
 from frbench.errors import PolicyError
 from frbench.policies.contract import Contract, LayoutInput, PolicyLayout, contract_for, read_layout
-from frbench.policies.export import sidecar_path
+from frbench.policies.contract import sidecar_path
 
 
 def safe_name(text: str) -> str:

@@ -35,7 +35,7 @@ def is_sb3_zip(path: Path) -> bool:
 
 def gym_layout() -> PolicyLayout:
     """The layout of ``frbench/FallRecovery-v1``'s observations and actions."""
-    from frbench.gym import ACTION_SCALE
+    from frbench.tasks.actions import ACTION_SCALE
 
     terms = tuple(ObservationTerm(name) for name in
                   ("base_angvel", "projected_gravity", "joint_pos", "joint_vel", "previous_target"))
@@ -66,7 +66,7 @@ class Sb3Policy(LayoutPolicy):
     def reset(self, spec, num_envs: int) -> None:
         """New episodes; the environment's observation bounds of ``spec``."""
         if self.gym_bounds:
-            from frbench.gym import observation_bounds
+            from frbench.tasks.observations import observation_bounds
 
             self.bounds = observation_bounds(spec)
         super().reset(spec, num_envs)

@@ -83,3 +83,19 @@ def flatten(obs: dict[str, np.ndarray], default_pose: np.ndarray) -> np.ndarray:
         ],
         axis=1,
     )
+
+
+#: Bounds of the body angular velocity [rad/s] and joint velocities [rad/s] in the Gymnasium observation space
+#: (values beyond them are clipped).
+MAX_ANGULAR_VELOCITY, MAX_JOINT_VELOCITY = 50.0, 50.0
+
+
+def observation_bounds(spec) -> tuple[np.ndarray, np.ndarray]:
+    """(low, high) of the Gymnasium observation o_t, each (6 + 3·n_joints,) float32: ±`MAX_ANGULAR_VELOCITY`, ±1
+    for gravity, the joint range around q̊, ±`MAX_JOINT_VELOCITY`, the joint range around q̊ again."""
+    default = np.asarray(spec.default_pose)
+    lower, upper = np.asarray(spec.joint_lower) - default, np.asarray(spec.joint_upper) - default
+    n = spec.n_joints
+    high = np.concatenate([np.full(3, MAX_ANGULAR_VELOCITY), np.ones(3), upper, np.full(n, MAX_JOINT_VELOCITY), upper])
+    low = np.concatenate([np.full(3, -MAX_ANGULAR_VELOCITY), -np.ones(3), lower, np.full(n, -MAX_JOINT_VELOCITY), lower])
+    return low.astype(np.float32), high.astype(np.float32)

@@ -50,7 +50,8 @@ from frbench.training.curriculum import TerrainCurriculum
 from frbench.training.height_raster import HeightRaster
 from frbench.training.observation_groups import observation_groups
 from frbench.training.population import TrainingRobots, yaw_of
-from frbench.training.residual import DirectTargets, ResidualController
+from frbench.tasks.actions import DirectTargets
+from frbench.training.residual import ResidualController
 from frbench.training.step_reward import StepReward
 from frbench.training.start_sources import DemoStarts, RiseStarts
 from frbench.training.terrain_grid import build_grid

@@ -1,6 +1,6 @@
 """Joint targets from the policy's action: direct, or a residual over a base controller.
 
-* `DirectTargets`: q* = q̊ + action_scale·a (the paper's; legged_gym's scale);
+* `DirectTargets` (`frbench.tasks.actions`): q* = q̊ + action_scale·a (the paper's; legged_gym's scale);
 * `ResidualController`: q* = base(o) + action_scale·a over a base controller's
   joint targets (residual policy learning), or base(o) + gate·action_scale·a
   with the controller's ``residual_gate(phases)`` (N,) when gated, so that
@@ -20,20 +20,6 @@ import numpy as np
 from frbench.backends.base import RobotState
 from frbench.robots.spec import RobotSpec
 from frbench.tasks.observations import proprioception
-
-
-class DirectTargets:
-    """q* = q̊ + ``scale``·a for a robot whose default pose is ``default_pose`` (J,) [rad]."""
-
-    def __init__(self, default_pose: np.ndarray, scale: float):
-        self.default_pose, self.scale = np.asarray(default_pose), float(scale)
-
-    def reset(self, spec: RobotSpec, num_envs: int) -> None:
-        """A new episode for every environment (nothing to do)."""
-
-    def targets(self, state: RobotState, action: np.ndarray) -> np.ndarray:
-        """Joint targets (N, J) [rad] of ``action`` (N, J)."""
-        return self.default_pose + self.scale * action
 
 
 class ResidualController:
