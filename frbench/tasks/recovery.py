@@ -118,6 +118,28 @@ class RecoveryTask:
         """Free the simulator."""
         self.backend.close()
 
+    # -- the physics outside an episode's steps: start banks, the assist force, the critic's ground truth -------
+    def drive(self, targets: np.ndarray) -> RobotState:
+        """Advance the physics one control step towards ``targets`` (N, n_joints) [rad] as given (not clipped, not
+        an episode step: the success test and the metrics do not see it); returns the new ``state``. Used to
+        record start banks (demo and rise starts) from the current starts."""
+        self.backend.step(targets)
+        self.state = self.backend.state()
+        return self.state
+
+    @property
+    def physics_diverged(self) -> np.ndarray:
+        """(N,) bool: the simulation has diverged now (since its last reset)."""
+        return self.backend.diverged
+
+    def set_base_force(self, force: np.ndarray) -> None:
+        """A constant external force (N, 3) [N], world frame, on each base's centre of mass until changed."""
+        self.backend.set_base_force(force)
+
+    def whole_body_com(self) -> np.ndarray:
+        """Whole-body centre of mass (N, 3) [m], world frame, payload included."""
+        return self.backend.whole_body_com()
+
     def _height_of_terrain(self, xy: np.ndarray) -> np.ndarray:
         return height_at(self.terrain, xy)
 

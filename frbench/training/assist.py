@@ -25,13 +25,13 @@ class AssistForce:
         self.mass = np.asarray(masses).sum(axis=1)
         self.fraction = 0.0
 
-    def clear(self, backend) -> None:
-        """No force (before a start is settled)."""
-        backend.set_base_force(np.zeros((backend.num_envs, 3)))
+    def clear(self, task) -> None:
+        """No force on ``task``'s robots (before a start is settled)."""
+        task.set_base_force(np.zeros((task.num_envs, 3)))
 
-    def apply(self, backend, env_steps: int) -> None:
-        """The episode's force, upwards [N], for a run at ``env_steps`` env steps."""
+    def apply(self, task, env_steps: int) -> None:
+        """The episode's force on ``task``'s robots, upwards [N], for a run at ``env_steps`` env steps."""
         self.fraction = assist_probability(self.initial, self.until, env_steps)
-        force = np.zeros((backend.num_envs, 3))
+        force = np.zeros((task.num_envs, 3))
         force[:, 2] = self.fraction * self.mass * GRAVITY
-        backend.set_base_force(force)
+        task.set_base_force(force)

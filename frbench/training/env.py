@@ -137,11 +137,11 @@ class RecoveryTrainingEnv(VecEnv):
         fraction = self.demo.fraction(self.env_steps)
         if self.demo.needs_recording(fraction):
             self._fresh_starts()
-            self.demo.record(self.backend, self.specs, self.assignment, self.tile_row)
+            self.demo.record(self.task, self.specs, self.assignment, self.tile_row)
         if self.rise is not None:
             if self.rise.needs_recording():
                 self._fresh_starts()
-                self.rise.record(self.backend, self.targets_of.fresh_copy(), self.spec, self.default_pose,
+                self.rise.record(self.task, self.targets_of.fresh_copy(), self.spec, self.default_pose,
                                  self.tile_row)
             self.rise.count_episode()
         self._fresh_starts()
@@ -183,9 +183,9 @@ class RecoveryTrainingEnv(VecEnv):
             pos[i], quat[i], q[i] = p + (dx, dy, 0.0), o, j
             kinds.append(kind)
         params = self.robots.episode_params()
-        self.assist.clear(self.backend)
+        self.assist.clear(self.task)
         self.task.reset(FallenStarts(pos, quat, q, kinds), params, self.cfg_obj.settle_steps)
-        self.assist.apply(self.backend, self.env_steps)
+        self.assist.apply(self.task, self.env_steps)
         self.episode_length_buf.zero_()
 
     # ------------------------------------------------------------------ observations
@@ -198,7 +198,7 @@ class RecoveryTrainingEnv(VecEnv):
         s = self.task.state
         scan = self.raster.scan(self.tile_row, s.base_pos, yaw_of(s.base_quat))
         return observation_groups(o_t, self.history, self.long_history, s, self.task.contacts, self.task.params,
-                                  self.robots.env_masses, self.robots.com_xy(s, self.backend.whole_body_com()), scan, self.backend.diverged)
+                                  self.robots.env_masses, self.robots.com_xy(s, self.task.whole_body_com()), scan, self.task.physics_diverged)
 
     def get_observations(self) -> TensorDict:
         """The current observation groups."""

@@ -49,9 +49,9 @@ class DemoStarts:
         """Whether the bank must be (re-)recorded before this reset."""
         return fraction > 0.0 and (self.bank is None or self.episodes_since >= self.refresh_episodes)
 
-    def record(self, backend, specs, assignment: np.ndarray, tile_row: np.ndarray) -> None:
-        """Record the bank from the fresh starts ``backend`` holds now (see `record_demo_starts`)."""
-        self.bank = record_demo_starts(backend, specs, assignment, tile_row, self.steps, self.stride)
+    def record(self, task, specs, assignment: np.ndarray, tile_row: np.ndarray) -> None:
+        """Record the bank from the fresh starts ``task`` holds now (see `record_demo_starts`)."""
+        self.bank = record_demo_starts(task, specs, assignment, tile_row, self.steps, self.stride)
         self.episodes_since = 0
 
     def draw(self, rng: np.random.Generator, num_envs: int, fraction: float) -> np.ndarray:
@@ -83,19 +83,18 @@ class RiseStarts:
         """One more episode since the bank was recorded."""
         self.episodes_since += 1
 
-    def record(self, backend, controller, spec, default_pose: np.ndarray, tile_row: np.ndarray) -> None:
-        """Run ``controller`` (a fresh base controller) on the fresh starts ``backend`` holds for one evaluation
+    def record(self, task, controller, spec, default_pose: np.ndarray, tile_row: np.ndarray) -> None:
+        """Run ``controller`` (a fresh base controller) on the fresh starts ``task`` holds for one evaluation
         episode (`EPISODE_STEPS`, whatever the training episode length: the gate openings an evaluation can see);
         keep the state (one row), tile, controller targets (J,) [rad] and way to the crouch (``gate_paths``) of
         every environment at the step its default gate (the crouch) first opened."""
-        n = backend.num_envs
+        n = task.num_envs
         controller.reset(spec, n)
         bank, opened = [], np.zeros(n, dtype=bool)
-        state = backend.state()
+        state = task.state
         for _ in range(EPISODE_STEPS):
-            backend.step(np.asarray(controller.act(proprioception(state, default_pose))))
-            state = backend.state()
-            new = (controller.residual_gate() > 0) & ~opened & ~backend.diverged
+            state = task.drive(np.asarray(controller.act(proprioception(state, default_pose))))
+            new = (controller.residual_gate() > 0) & ~opened & ~task.physics_diverged
             paths = controller.gate_paths()
             bank += [(state.take([i]), int(tile_row[i]), controller.target[i].copy(), int(paths[i]))
                      for i in np.flatnonzero(new)]
