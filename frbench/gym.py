@@ -168,7 +168,7 @@ class FallRecoveryVectorEnv(VectorEnv):
             upright = tracker.upright(signals)
         return {"success": tracker.success.copy(), "upright": np.asarray(upright, dtype=bool),
                 "time_to_recover": tracker.time_to_recover.copy(),
-                "diverged": self.task.backend.diverged | self.task.settle_diverged}
+                "diverged": self.task.physics_diverged | self.task.settle_diverged}
 
     def episode_metrics(self) -> dict[str, np.ndarray]:
         """The per-episode record of ``frbench evaluate`` so far, each (N,) (time_to_recover NaN if none)."""
