@@ -33,9 +33,17 @@ COMMAND_MODULES = (
 )
 
 
+class OneLineErrorParser(argparse.ArgumentParser):
+    """argparse's parser (and its sub-parsers) with a usage error on one line, exit status 2:
+    ``frbench evaluate: error: argument --episodes: invalid int value: 'x' (see `frbench evaluate --help`)``."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {' '.join(message.split())} (see `{self.prog} --help`)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The full argument parser (commands whose module is absent are skipped)."""
-    parser = argparse.ArgumentParser(prog="frbench", description="Legged-robot fall-recovery benchmark.")
+    parser = OneLineErrorParser(prog="frbench", description="Legged-robot fall-recovery benchmark.")
     parser.add_argument("--version", action="version", version=f"frbench {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMAND_MODULES:

@@ -48,11 +48,11 @@ def test_table_and_figures(tmp_path):
 def test_bad_files_are_named(tmp_path):
     bad = tmp_path / "bad.json"
     bad.write_text("{")
-    with pytest.raises(FrbenchError, match="bad.json: not JSON"):
+    with pytest.raises(FrbenchError, match="bad.json: not valid JSON"):
         load_results([bad])
     other = tmp_path / "other.json"
     other.write_text(json.dumps({"x": 1}))
-    with pytest.raises(FrbenchError, match="other.json: not an frbench evaluate results file"):
+    with pytest.raises(FrbenchError, match="other.json: schema_version: required field is missing; expected 1"):
         load_results([other])
     with pytest.raises(FrbenchError, match="series 'x'"):
         success_table([A], series="x")

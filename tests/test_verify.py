@@ -268,3 +268,43 @@ def test_the_sample_is_seeded_and_the_comparison_modes_differ():
     assert compare_episode(recorded, close, exact=False) == []
     assert compare_episode(recorded, {**close, "success": False}, exact=False) == ["success True -> False"]
     assert compare_episode(recorded, {**recorded, "energy": 101.0}, exact=False) == ["energy 100.0 -> 101.0"]
+
+
+# --------------------------------------------------------------------------- policies trained elsewhere
+
+
+def test_a_foreign_onnx_policy_with_its_spec_file_is_attached_with_its_layout_and_verifies(capsys, root, tmp_path):
+    """`torch.onnx.export` of a plain MLP, evaluated with `--spec layout.json`: the layout travels as the sidecar."""
+    from policy_factory import export_onnx, mlp
+
+    onnx = export_onnx(mlp(seed=5), tmp_path / "foreign.onnx")
+    status, layout_text, _ = cli(capsys, "spec", "--robot", "go2", "--json")
+    assert status == 0
+    layout = tmp_path / "layout.json"
+    layout.write_text(layout_text)
+    out = tmp_path / "foreign-results.json"
+    status, _, err = cli(capsys, "evaluate", "--policy", onnx, "--spec", layout, "--robots", "go2", "--backends", "mujoco",
+                         "--terrains", "flat", "--levels", "1", "--seeds", "0", "--episodes", "2", "--jobs", "1", "--out", out)
+    assert status == 0, err
+    results = json.loads(out.read_text())
+    path = submitted(capsys, root, tmp_path, results, onnx)
+    entry = load_record(path)["policy_file"]
+    assert entry["file"].endswith(".onnx") and entry["sidecar_sha256"] == sha256_file(layout)
+    assert (root / (entry["file"] + ".json")).read_bytes() == layout.read_bytes()
+    status, out_text, _ = verify(capsys, path)
+    assert status == 0 and "policy: attached" in out_text, out_text
+    (root / (entry["file"] + ".json")).write_text("{}")  # the layout replaced: caught by its hash
+    status, out_text, _ = verify(capsys, path)
+    assert status == 1 and "attached policy sidecar" in out_text
+
+
+def test_a_python_file_policy_is_attached_and_re_run_by_its_attribute(capsys, root, tmp_path):
+    from policy_factory import POLICY_FILE
+
+    source = tmp_path / "mine.py"
+    source.write_text(POLICY_FILE)
+    results = evaluate(f"{source}:Zero")
+    path = submitted(capsys, root, tmp_path, results, source)
+    assert load_record(path)["policy_file"]["file"].endswith(".py")
+    status, out, _ = verify(capsys, path)
+    assert status == 0 and "policy: attached" in out and out.count(".py:Zero") == 1, out

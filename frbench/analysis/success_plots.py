@@ -10,7 +10,6 @@ same numbers go into a Markdown table (`markdown_table`) for docs/results.md.
 
 from __future__ import annotations
 
-import json
 from collections import defaultdict
 from pathlib import Path
 
@@ -23,19 +22,11 @@ SERIES_KEYS = ("robot", "policy")
 
 
 def load_results(paths: list[Path]) -> list[dict]:
-    """The results JSON of each path (a clear error names a missing or malformed file)."""
-    loaded = []
-    for path in paths:
-        try:
-            data = json.loads(Path(path).read_text())
-        except OSError as exc:
-            raise FrbenchError(f"{path}: cannot read results file ({exc.strerror})") from None
-        except json.JSONDecodeError as exc:
-            raise FrbenchError(f"{path}: not JSON ({exc.msg} at line {exc.lineno})") from None
-        if "cells" not in data or "policy" not in data:
-            raise FrbenchError(f"{path}: not an frbench evaluate results file (no 'cells' or 'policy')")
-        loaded.append(data)
-    return loaded
+    """The results JSON of each path, read and checked as ``frbench submit`` does (`frbench.leaderboard.board.read_results`:
+    schema, self-consistency, known protocol); an error is one line naming the file and the field."""
+    from frbench.leaderboard.board import read_results
+
+    return [read_results(path) for path in paths]
 
 
 def success_table(results: list[dict], series: str = "robot") -> dict:

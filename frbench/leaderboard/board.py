@@ -115,7 +115,9 @@ def submit(
     record = build_record(results, fields)
     attached = None
     if policy_file is not None:
-        attached = read_policy_file(policy_file)
+        from frbench.policies.references import split_reference
+
+        attached = read_policy_file(policy_file, layout=split_reference(results["config"]["policy"])[1])
         check_attachable(attached, results, os.fspath(policy_file))
         record["policy_file"] = attached.entry()
     path = root / RECORDS / f"{record['id']}.json"

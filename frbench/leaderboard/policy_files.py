@@ -7,9 +7,11 @@ records attach it) and writes into the record::
     "policy_file": {"sha256": <hex>, "bytes": <size>, "file": "policies/<sha256><suffix>"}
 
 The suffix is kept because it tells ``load_policy`` what the file is (``.pt``,
-``.onnx``, ...). An ONNX export's sidecar ``<FILE>.json`` (its observation and
-action layout) is attached with it when present, stored as
-``policies/<sha256><suffix>.json`` with its own hash (``sidecar_sha256``).
+``.onnx``, ...). The policy's layout (its observation and action conventions)
+is attached with it as its sidecar, stored as ``policies/<sha256><suffix>.json``
+with its own hash (``sidecar_sha256``), where ``load_policy`` looks for it: the
+``--spec`` file the results were evaluated with, else ``<FILE>.json`` beside
+the file (an ONNX export's sidecar) when present.
 The policy file and its sidecar together may hold at most
 :data:`MAX_POLICY_BYTES` (16 MiB): a larger file is refused before it is read.
 
@@ -82,14 +84,18 @@ def _read_capped(path: Path, label: str, budget: int) -> bytes:
     return data
 
 
-def read_policy_file(path: str | os.PathLike, label: str = "--policy-file") -> PolicyFile:
-    """Read a policy file (and its ``<file>.json`` sidecar, if any) for attaching; errors name ``label`` and the file."""
+def read_policy_file(path: str | os.PathLike, label: str = "--policy-file", layout: str | None = None) -> PolicyFile:
+    """Read a policy file for attaching, with its layout as the sidecar: ``layout`` (the ``--spec`` file the results
+    were evaluated with) if given, else ``<file>.json`` if present; errors name ``label`` and the file."""
     path = Path(path)
     if not SUFFIX_RE.match(path.suffix):
         raise ResultsError(f"{label}: {path}: the file name's suffix {path.suffix[:40]!r} is not allowed; "
                            "use at most 16 letters, digits, '_' or '-' after the dot (e.g. .pt, .onnx, .zip)")
     data = _read_capped(path, label, MAX_POLICY_BYTES)
-    sidecar = sidecar_path(path)
+    sidecar = Path(layout) if layout is not None else sidecar_path(path)
+    if layout is not None and not sidecar.is_file():
+        raise ResultsError(f"{label}: the results were evaluated with the layout file {layout} (--spec), which cannot be "
+                           "read here; submit where it is, so that it is attached with the policy")
     sidecar = _read_capped(sidecar, label, MAX_POLICY_BYTES - len(data)) if sidecar.is_file() else None
     return PolicyFile(data, _sha256(data), path.suffix, sidecar)
 
