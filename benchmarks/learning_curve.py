@@ -115,11 +115,13 @@ def main(argv=None) -> int:
     parser.add_argument("--jobs", type=int, default=3, help="seeds trained at once")
     parser.add_argument("--target", type=float, default=0.6)
     parser.add_argument("--report", action="store_true", help="print the table of the existing runs only")
+    parser.add_argument("--marks", default=",".join(f"{m:g}" for m in MARKS),
+                        help="env-step marks of the table (comma-separated), the last one the target's")
     args = parser.parse_args(argv)
     seeds = [int(s) for s in args.seeds.split(",")]
     if not args.report:
         train_all(args, seeds)
-    report(args.out, seeds, args.target)
+    report(args.out, seeds, args.target, tuple(float(m) for m in args.marks.split(",")))
     return 0
 
 
