@@ -78,7 +78,7 @@ def report(out: Path, seeds: list[int], target: float, marks=MARKS) -> int:
         path = out / f"seed{seed}" / "progress.json"
         progress = json.loads(path.read_text()) if path.is_file() else []
         rows[seed] = [at_mark(progress, m) for m in marks]
-    header = "seed  " + "  ".join(f"{m / 1e6:>9.1f}M" for m in marks)
+    header = "seed  " + "  ".join(f"{m / 1e6:>9.3g}M" for m in marks)
     print(f"training success, flat / all terrains, at env-step marks ({out})")
     print(header)
     for seed, points in rows.items():
