@@ -180,7 +180,8 @@ PAGE_SCRIPT = r"""
       {key: "rank", label: "#", num: true, dir: "asc", get: function (x) { return x.rank; },
        show: function (x) { return String(x.rank) + (x.tied ? " ~" : ""); }},
       {key: "name", label: "Name", dir: "asc", get: function (x) { return x.r.name; }},
-      {key: "policy", label: "Policy", dir: "asc", get: function (x) { return x.r.policy; }},
+      {key: "policy", label: "Policy", dir: "asc", get: function (x) {
+        return x.r.policy + (x.r.inputs === "simulator-state" ? " (simulator state)" : ""); }},
       {key: "submitter", label: "Submitter", dir: "asc", get: function (x) { return x.r.submitter; }},
       {key: "protocol", label: "Protocol", dir: "asc", get: function (x) { return x.r.protocol_version; }},
       {key: "overall", label: "Overall", num: true, score: true, dir: "desc", get: function (x) { return x.s.overall; },
@@ -322,7 +323,8 @@ PAGE_SCRIPT = r"""
     dlRow(dl, "Record", rec.id);
     dlRow(dl, "Track", rec.section === "archived" ? "archived (protocol " + rec.protocol_version + ", not ranked against " + DATA.protocol + ")"
                        : rec.track === "main" ? "main board (standard grid)" : "partial");
-    dlRow(dl, "Policy", rec.policy);
+    dlRow(dl, "Policy", rec.policy + (rec.inputs === "simulator-state"
+      ? " (reads the simulator's state and the terrain: not a blind policy, never ranked with them)" : ""));
     dlRow(dl, "Submitter", rec.submitter);
     dlRow(dl, "Submitted", rec.submitted);
     dlRow(dl, "Description", rec.description);
