@@ -244,6 +244,19 @@ def test_records_of_another_protocol_are_caught(capsys, root, tmp_path, policies
     assert status == 1 and "mismatch: go2 mujoco flat level 1 seed 0 episode" in out
 
 
+def test_a_record_of_other_library_versions_is_compared_within_the_tolerance(capsys, root, tmp_path, policies, honest):
+    path = submitted(capsys, root, tmp_path, honest, policies["frnet-3m"])
+    original = load_record(path)
+    older = _rebuilt(honest, original["submission"], lambda r: r["versions"].update(mujoco="3.9.9"))
+    older["policy_file"] = original["policy_file"]
+    path = _replace(root, path, older)
+    status, out, _ = verify(capsys, path, "--save")
+    assert status == 0, out
+    assert "note: version of mujoco: 3.9.9 in the record, " in out and "compared within tolerance" in out
+    assert load_record(path)["verifications"][0]["mode"] == "tolerance"
+    assert "2 tolerance" in (root / "README.md").read_text()
+
+
 @pytest.mark.parametrize("args, message", [
     (["missing.json"], "missing.json: no such file"),
     (["--sample", "0"], "--sample 0: expected at least 1 episode"),

@@ -18,6 +18,7 @@ from decimal import ROUND_HALF_UP, Decimal
 from typing import Iterable, Mapping, Sequence
 
 from frbench.leaderboard.page import PAGE_SCRIPT, PAGE_STYLE, PAGE_TEMPLATE
+from frbench.leaderboard.policy_files import MAX_POLICY_BYTES
 from frbench.leaderboard.scores import (
     aggregate,
     check_same_protocol,
@@ -27,6 +28,7 @@ from frbench.leaderboard.scores import (
     score_intervals,
     scored_cells,
 )
+from frbench.leaderboard.verify import RELATIVE_TOLERANCE
 from frbench.tasks.protocol import (
     KNOWN_PROTOCOL_VERSIONS,
     PROTOCOL_VERSION,
@@ -260,13 +262,15 @@ def render_markdown(records: Sequence[Mapping]) -> str:
         "Fall-recovery policies evaluated with `frbench evaluate`, submitted with",
         "`frbench submit RESULTS.json --name NAME --submitter WHO --description TEXT --link URL [--policy-file FILE]`.",
         "",
-        "*Policy file*: the record carries the policy that produced it (`--policy-file`, at most 16 MiB, stored as",
+        f"*Policy file*: the record carries the policy that produced it (`--policy-file`, at most "
+        f"{MAX_POLICY_BYTES // 2**20} MiB, stored as",
         "`policies/<sha256><suffix>`). `frbench verify RECORD [--sample N] [--seed S]` re-runs a seeded random",
         "sample of a record's episodes from its provenance with that policy (or with the shipped checkpoint of the",
         "same sha256, or a built-in policy by name, re-run with the checkout's code) and compares them episode by",
         "episode: bit-identical (*exact*) where the library versions match, else (or with `--tolerance`, for a",
         "record made on other hardware) the same success, rollover, divergence, initial pose and start redraws,",
-        "time to recover within one control period and the other metrics within 0.1 % (*tolerance*); it exits 1",
+        f"time to recover within one control period and the other metrics within {100 * RELATIVE_TOLERANCE:g} % "
+        "(*tolerance*); it exits 1",
         "on a mismatch and lists the differences. *Verified*: episodes reproduced by `frbench verify --save`.",
         "Open [index.html](index.html) for filters by robot, backend and terrain family, success-vs-level",
         "charts and each record's provenance.",
