@@ -170,3 +170,19 @@ def test_mpc_policy_drives_a_robot_added_by_path():
     task = run_episodes(spec, "mujoco", terrain, starts, policy, seed=0, steps=4)
     assert policy.planning.model.nu == 2 * spec.n_joints
     assert np.isfinite(policy.last_cost).all() and not task.backend.diverged.any()
+
+
+def test_displacement_term_counts_only_beyond_the_free_radius():
+    from frbench.planning.config import CostWeights
+    from frbench.planning.cost import FREE_DISPLACEMENT, Cost
+
+    spec, terrain, _, _ = _lying("g1", 2)
+    planning = build_planning_model(spec, terrain, 0.005)
+    cost = Cost(spec, planning, CostWeights(displacement=5.0))
+    sensordata = np.zeros((2, 1, planning.model.nsensordata))
+    sensordata[0, 0, planning.sensors.root_pos] = [0.1, 0.0, 0.3]  # inside the free radius
+    sensordata[1, 0, planning.sensors.root_pos] = [1.0, 0.0, 0.3]
+    q = np.tile(spec.default_pose, (2, 1, 1))
+    terms = cost.terms(sensordata, q, q, 0.0, anchor=np.zeros(2))
+    np.testing.assert_allclose(terms["displacement"][:, 0], [0.0, 5.0 * (1.0 - FREE_DISPLACEMENT) ** 2])
+    assert not cost.terms(sensordata, q, q, 0.0)["displacement"].any()  # no anchor, no term

@@ -19,6 +19,7 @@ class CostWeights:
     posture: float = 1.0  # squared distance to the default pose [rad²] per joint, once up
     effort: float = 0.05  # squared PD torque over the torque limit, per joint
     joint_limits: float = 10.0  # squared excursion past the limit margin [rad²]
+    displacement: float = 0.0  # squared distance from the episode's start beyond 0.3 m [m²]
 
 
 @dataclass(frozen=True)

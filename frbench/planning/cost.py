@@ -15,7 +15,8 @@ Terms (per control step; K samples, C steps):
 * CoM velocity: |v_CoM|² [m²/s²] · up;
 * posture: mean over joints of (q − q̊)² [rad²] · up;
 * effort: mean over joints of (Kp (q* − q) / τ_max)² (the PD torque that the target asks for);
-* joint limits: sum over joints of (q past the limits shrunk by `LIMIT_MARGIN`)² [rad²].
+* joint limits: sum over joints of (q past the limits shrunk by `LIMIT_MARGIN`)² [rad²];
+* displacement: (distance of the root from the episode's start − `FREE_DISPLACEMENT`)₊² [m²].
 
 A diverged rollout (non-finite values) costs `DIVERGED_COST`.
 """
@@ -33,6 +34,9 @@ from frbench.robots.spec import RobotSpec
 
 #: Fraction of each joint's range kept free at either end before the joint-limit term counts [-].
 LIMIT_MARGIN = 0.02
+#: Horizontal distance [m] from the episode's start that the displacement term leaves free (the protocol
+#: fails a recovery more than 1 m away).
+FREE_DISPLACEMENT = 0.3
 #: The cost of a rollout that diverged.
 DIVERGED_COST = 1e9
 
@@ -76,7 +80,8 @@ class Cost:
         margin = LIMIT_MARGIN * (upper - lower)
         self.lower, self.upper = lower + margin, upper - margin
 
-    def terms(self, sensordata: np.ndarray, q: np.ndarray, targets: np.ndarray, ground: float) -> dict[str, np.ndarray]:
+    def terms(self, sensordata: np.ndarray, q: np.ndarray, targets: np.ndarray, ground: float,
+              anchor: np.ndarray | None = None) -> dict[str, np.ndarray]:
         """Each weighted term per sample and step, (K, C).
 
         Args:
@@ -84,6 +89,7 @@ class Cost:
             q: (K, C, n_joints) joint positions [rad] there.
             targets: (K, C, n_joints) the joint targets q* [rad] held during each period.
             ground: terrain height [m] under the robot.
+            anchor: (2,) where the episode started, world xy [m] (the displacement term; None: no term).
         """
         w, s, ref = self.weights, self.layout, self.reference
         h_root = sensordata[..., s.root_pos][..., 2] - ground
@@ -98,6 +104,10 @@ class Cost:
         posture = ((q - self.default_pose) ** 2).mean(axis=-1)
         effort = ((np.clip(self.kp * (targets - q), -self.torque_limits, self.torque_limits) / self.torque_limits) ** 2).mean(axis=-1)
         limits = (np.maximum(q - self.upper, 0.0) ** 2 + np.maximum(self.lower - q, 0.0) ** 2).sum(axis=-1)
+        drift = np.zeros_like(h_root)
+        if anchor is not None:
+            away = np.linalg.norm(sensordata[..., s.root_pos][..., :2] - anchor, axis=-1)
+            drift = np.maximum(away - FREE_DISPLACEMENT, 0.0) ** 2
         return {
             "height": w.height * deficit,
             "upright": w.upright * tilt,
@@ -107,10 +117,12 @@ class Cost:
             "posture": w.posture * up * posture,
             "effort": w.effort * effort,
             "joint_limits": w.joint_limits * limits,
+            "displacement": w.displacement * drift,
         }
 
-    def __call__(self, sensordata: np.ndarray, q: np.ndarray, targets: np.ndarray, ground: float) -> np.ndarray:
+    def __call__(self, sensordata: np.ndarray, q: np.ndarray, targets: np.ndarray, ground: float,
+                 anchor: np.ndarray | None = None) -> np.ndarray:
         """Total cost per sample (K,): the terms summed, averaged over the C steps (see `terms`)."""
-        total = sum(self.terms(sensordata, q, targets, ground).values()).mean(axis=-1)
+        total = sum(self.terms(sensordata, q, targets, ground, anchor).values()).mean(axis=-1)
         finite = np.isfinite(sensordata).all(axis=(1, 2)) & np.isfinite(q).all(axis=(1, 2))
         return np.where(finite & np.isfinite(total), total, DIVERGED_COST)

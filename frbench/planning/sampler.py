@@ -99,9 +99,11 @@ class Sampler:
         """A plan (n_knots, n_joints) that holds the joint positions ``q`` [rad] (clipped to the limits)."""
         return np.tile(np.clip(q, self.lower, self.upper), (len(self.knot_steps), 1))
 
-    def evaluate(self, initial_state: np.ndarray, candidates: np.ndarray, ground: float) -> np.ndarray:
+    def evaluate(self, initial_state: np.ndarray, candidates: np.ndarray, ground: float,
+                 anchor: np.ndarray | None = None) -> np.ndarray:
         """Roll out ``candidates`` (samples, n_knots, n_joints) from ``initial_state`` (n_state,) and return their
-        costs (samples,); ``ground`` is the terrain height [m] under the robot."""
+        costs (samples,); ``ground`` is the terrain height [m] under the robot, ``anchor`` (2,) the episode's start
+        xy [m] (None: no displacement term)."""
         planning, k = self.planning, len(candidates)
         targets = self.targets(candidates)  # (K, C, J)
         control = self._control[:k]
@@ -110,11 +112,12 @@ class Sampler:
         rollout.rollout(planning.model, self.datas, np.broadcast_to(initial_state, (k, planning.n_state)), control,
                         state=state, sensordata=sensordata, skip_checks=False)
         ends = slice(planning.substeps - 1, None, planning.substeps)
-        return self.cost(sensordata[:, ends], state[:, ends][..., self._q_columns], targets, ground)
+        return self.cost(sensordata[:, ends], state[:, ends][..., self._q_columns], targets, ground, anchor)
 
-    def plan(self, initial_state: np.ndarray, nominal: np.ndarray, ground: float,
-             rng: np.random.Generator) -> PlanResult:
-        """One replanning from ``initial_state`` (n_state,) around ``nominal`` (n_knots, n_joints) [rad]."""
+    def plan(self, initial_state: np.ndarray, nominal: np.ndarray, ground: float, rng: np.random.Generator,
+             anchor: np.ndarray | None = None) -> PlanResult:
+        """One replanning from ``initial_state`` (n_state,) around ``nominal`` (n_knots, n_joints) [rad] (``ground``,
+        ``anchor``: see `evaluate`)."""
         cfg = self.config
         fixed = [nominal] if self.prior is None else [nominal, self.prior]
         shape = (cfg.samples - len(fixed), *nominal.shape)
@@ -123,7 +126,7 @@ class Sampler:
         for _ in range(cfg.iterations):
             perturbed = np.clip(mean + spread * rng.standard_normal(shape), self.lower, self.upper)
             candidates = np.concatenate([best[None], *(p[None] for p in fixed[1:]), perturbed])
-            costs = self.evaluate(initial_state, candidates, ground)
+            costs = self.evaluate(initial_state, candidates, ground, anchor)
             if first_costs is None:
                 first_costs = costs.copy()
             order = np.argsort(costs, kind="stable")

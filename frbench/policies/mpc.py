@@ -95,6 +95,7 @@ class MpcPolicy:
         self.scratch = mujoco.MjData(self.planning.model)
         self.rngs = [np.random.default_rng([self.config.seed, int(seed), i]) for i in range(self.num_envs)]
         self.plans: list[np.ndarray | None] = [None] * self.num_envs
+        self.anchors: list[np.ndarray | None] = [None] * self.num_envs
         self.queue = np.zeros((self.num_envs, self.config.replan_steps, self.spec.n_joints))
         self.step_index = 0
         self.last_cost = np.full(self.num_envs, np.nan)
@@ -128,7 +129,9 @@ class MpcPolicy:
         previous = self.plans[i]
         nominal = self.sampler.hold(state.q[i]) if previous is None else self.sampler.shifted(previous, steps)
         ground = float(height_at(self.terrain, state.base_pos[i, :2]))
-        result = self.sampler.plan(x0, nominal, ground, self.rngs[i])
+        if self.anchors[i] is None:  # the first observed state is the episode's start
+            self.anchors[i] = state.base_pos[i, :2].copy()
+        result = self.sampler.plan(x0, nominal, ground, self.rngs[i], self.anchors[i])
         self.plans[i], self.last_cost[i] = result.knots, result.cost
         targets = self.sampler.targets(result.knots)
         self.queue[i] = targets[np.minimum(np.arange(steps), len(targets) - 1)]
