@@ -177,13 +177,18 @@ def _free_port() -> int:
         return sock.getsockname()[1]
 
 
+#: Seconds the other ranks get to end on their own once one has failed, before they are stopped.
+FAILURE_GRACE_S = 10.0
+
+
 def launch(nproc: int, argv: list[str], resume=None) -> int:
     """Run ``frbench <argv>`` on ``nproc`` processes of this machine (torchrun's environment variables on
     127.0.0.1); the exit status of the first process that fails, else 0.
 
     Rank 0 writes to this terminal; the other ranks' output goes to a log that is shown only when one of them
     fails alone (a bad input makes every rank print the same one-line error: rank 0's is enough). When one
-    rank fails the others are stopped (they would wait for it forever). ``resume``: the run folder of
+    rank fails the others get `FAILURE_GRACE_S` to end on their own (a bad input fails each of them a moment
+    apart), then are stopped (they would wait for it forever). ``resume``: the run folder of
     ``--resume``, whose process count is checked before anything starts. Each process gets
     ``cores // nproc`` MuJoCo threads (at least 1) unless ``FRBENCH_MUJOCO_THREADS`` is set."""
     import tempfile
@@ -210,6 +215,9 @@ def launch(nproc: int, argv: list[str], resume=None) -> int:
             for p in procs:
                 p.wait()
             raise
+        deadline = time.time() + FAILURE_GRACE_S  # a bad input fails every rank: let rank 0 say it too
+        while any(p.poll() is None for p in procs) and time.time() < deadline:
+            time.sleep(0.2)
         failed = [p for p in procs if p.poll() not in (None, 0)]
         for p in procs:
             if p.poll() is None:
