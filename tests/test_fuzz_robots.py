@@ -145,3 +145,11 @@ def test_generated_urdfs(text, add):
 @given(sidecars, st.booleans())
 def test_generated_sidecars(table, add):
     _sidecar_property(table, add)
+
+
+def test_an_unstable_robot_leaves_no_mujoco_log_behind():
+    """Found by the fuzzer: a hip cylinder of radius 14 m makes MuJoCo warn "Nan, Inf or huge value in QACC", and
+    MuJoCo's own warning handler appended it to MUJOCO_LOG.TXT in the working directory."""
+    root = ET.fromstring(BASE)
+    root.find("link[@name='FR_hip']/collision/geometry/cylinder").set("radius", "14")
+    _check(ET.tostring(root, encoding="unicode"), None, add=False)

@@ -34,6 +34,8 @@ Pinocchio load). What this adds, and why:
 
 from __future__ import annotations
 
+import logging
+
 import mujoco
 import numpy as np
 
@@ -105,6 +107,18 @@ def _add_joint_actuator(mj: mujoco.MjSpec, name: str, joint: str, gain: float, b
     actuator.forcerange = [-limit, limit]
 
 
+def _log_warning(message: str) -> None:
+    logging.getLogger("frbench.mujoco").warning("MuJoCo: %s", message)
+
+
+def route_warnings() -> None:
+    """Send MuJoCo's warnings (e.g. "Nan, Inf or huge value in QACC" of an unstable model) to the
+    ``frbench.mujoco`` logger: MuJoCo's own handler prints them and appends them to ``MUJOCO_LOG.TXT`` in the
+    working directory, a file frbench must not leave behind. frbench reports divergence itself (``diverged``)."""
+    if mujoco.get_mju_user_warning() is not _log_warning:
+        mujoco.set_mju_user_warning(_log_warning)
+
+
 def build_model(spec: RobotSpec, terrain, friction: float = 1.0) -> mujoco.MjModel:
     """Compiled model of ``spec`` on ``terrain``, from frbench's cache when it was compiled before.
 
@@ -113,6 +127,7 @@ def build_model(spec: RobotSpec, terrain, friction: float = 1.0) -> mujoco.MjMod
     """
     from frbench.content_cache import cached_bytes, content_key, object_key, source_key
 
+    route_warnings()
     sim = sim_robot_file(spec)
     key = content_key(spec, sim.path.read_bytes(), object_key(terrain), float(friction), mujoco.__version__,
                       source_key(__name__, "frbench.backends.terrain_build", "frbench.robots.sim_urdf"))
