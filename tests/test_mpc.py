@@ -186,3 +186,13 @@ def test_displacement_term_counts_only_beyond_the_free_radius():
     terms = cost.terms(sensordata, q, q, 0.0, anchor=np.zeros(2))
     np.testing.assert_allclose(terms["displacement"][:, 0], [0.0, 5.0 * (1.0 - FREE_DISPLACEMENT) ** 2])
     assert not cost.terms(sensordata, q, q, 0.0)["displacement"].any()  # no anchor, no term
+
+
+@pytest.mark.parametrize("robot", ["go1", "aliengo", "spot_like", "lite3_like"])
+def test_mpc_policy_plans_for_every_quadruped_of_the_library(robot):
+    spec, terrain = get_robot(robot), make_terrain("stairs", 5, 0)
+    starts = draw_starts(spec, terrain, "stairs", 5, 0, [0])
+    policy = MpcPolicy(PlannerConfig(samples=4, horizon=0.1, knots=2, planning_dt=max(spec.physics_dt, 0.005)))
+    task = run_episodes(spec, "mujoco", terrain, starts, policy, seed=0, steps=4)
+    assert policy.supports(spec) and policy.sampler.cost.reference.root == pytest.approx(spec.nominal_height)
+    assert np.isfinite(policy.last_cost).all() and not task.backend.diverged.any()
