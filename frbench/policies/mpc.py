@@ -50,7 +50,7 @@ def config_from_text(text: str) -> tuple[PlannerConfig, dict]:
 
 
 class MpcPolicy:
-    """Predictive-sampling / cross-entropy MPC over spline knots of joint targets (module docstring)."""
+    """Sampling MPC on a MuJoCo copy of the episode, reading the simulator's state (not blind; docs/planning.md)."""
 
     checkpoint: Path | None = None
     uses_simulator_state = True
