@@ -73,7 +73,8 @@ class StepReward:
         spec: the robot (joint order, limits, default pose = the standing posture q̊).
         nominal_height: standing base height [m], scalar or (N,).
         ground_height: terrain height [m] (N,) under world points (N, 2) of each environment.
-        head: the humanoid's head points (None for robots without a head term).
+        head: the humanoid's head points (None for robots without a head; unused when the table has no
+            ``head_height`` term).
     """
 
     def __init__(self, config: RewardConfig, spec: RobotSpec, nominal_height, ground_height: Callable,
@@ -83,7 +84,8 @@ class StepReward:
         self.nominal_height = nominal_height
         self.upper_body = upper_body_joints(spec)
         self.ground_height = ground_height
-        self.head = head
+        #: The head points, kept only when the table has a head term (one Pinocchio pass per env and step).
+        self.head = head if "head_height" in self.config.weights else None
 
     def __call__(self, task, action: np.ndarray, action_prev: np.ndarray, action_prev2: np.ndarray,
                  qd_prev: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray]:

@@ -63,10 +63,6 @@ class SignedPermutation:
             offset += len(part)
         return SignedPermutation(np.concatenate(index), np.concatenate(sign))
 
-    @staticmethod
-    def repeat(part: "SignedPermutation", times: int) -> "SignedPermutation":
-        return SignedPermutation.concat(*([part] * times))
-
 
 def identity(n: int) -> SignedPermutation:
     return SignedPermutation(np.arange(n), np.ones(n))
