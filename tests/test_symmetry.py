@@ -116,3 +116,13 @@ def test_the_symmetry_preset_trains_frnet_with_mirrored_mini_batches(tmp_path):
     run.train(progress_bar=False)
     assert seen and set(seen) == {2.0}  # every mini-batch doubled by its mirror
     assert run.env_steps == 96
+
+
+def test_a_preset_s_algorithm_values_reach_the_rsl_rl_config_beside_the_mirror():
+    from frbench.training.methods import make_train_cfg
+    from frbench.training.presets import PRESETS
+
+    cfg = make_train_cfg("frnet", PRESETS["symmetry-entropy"].train_overrides())
+    assert cfg["algorithm"]["entropy_coef"] == 0.01
+    assert cfg["algorithm"]["symmetry_cfg"]["use_data_augmentation"] is True
+    assert make_train_cfg("frnet", PRESETS["symmetry"].train_overrides())["algorithm"]["entropy_coef"] == 0.005

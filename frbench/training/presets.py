@@ -36,6 +36,7 @@ class Preset:
         init_std: the Gaussian actions' initial std (None: the method's).
         symmetry: train with rsl-rl's symmetry augmentation: every PPO mini-batch also holds its left/right
             mirror image (`frbench.training.symmetry`; quadrupeds in frbench's canonical joint order).
+        algorithm: rsl-rl ``algorithm`` config key → value, over the method's (e.g. ``entropy_coef``).
     """
 
     description: str
@@ -45,14 +46,18 @@ class Preset:
     drop_terms: tuple[str, ...] = ()
     init_std: float | None = None
     symmetry: bool = False
+    algorithm: Mapping[str, object] = field(default_factory=lambda: MappingProxyType({}))
 
     def train_overrides(self) -> dict | None:
         """The changes to the method's rsl-rl config (None: none)."""
         overrides: dict = {}
         if self.init_std is not None:
             overrides["actor"] = {"distribution_cfg": {"init_std": self.init_std}}
+        algorithm = dict(self.algorithm)
         if self.symmetry:
-            overrides["algorithm"] = {"symmetry_cfg": dict(SYMMETRY_AUGMENTATION)}
+            algorithm["symmetry_cfg"] = dict(SYMMETRY_AUGMENTATION)
+        if algorithm:
+            overrides["algorithm"] = algorithm
         return overrides or None
 
 
@@ -65,6 +70,10 @@ PRESETS: Mapping[str, Preset] = MappingProxyType({
     "symmetry": Preset(
         "demo-starts with rsl-rl's symmetry augmentation: each PPO mini-batch also holds its left/right mirror",
         env=MappingProxyType({"demo_start_fraction": 0.5}), symmetry=True),
+    "symmetry-entropy": Preset(
+        "symmetry with entropy coefficient 0.01 (rsl-rl's and MuJoCo Playground's getup value) instead of 0.005",
+        env=MappingProxyType({"demo_start_fraction": 0.5}), symmetry=True,
+        algorithm=MappingProxyType({"entropy_coef": 0.01})),
     "no-stability": Preset(
         "demo-starts without the stability reward terms (the frnet-no-stability ablation)",
         env=MappingProxyType({"demo_start_fraction": 0.5}), drop_terms=STABILITY_TERMS),
