@@ -196,3 +196,22 @@ def test_mpc_policy_plans_for_every_quadruped_of_the_library(robot):
     task = run_episodes(spec, "mujoco", terrain, starts, policy, seed=0, steps=4)
     assert policy.supports(spec) and policy.sampler.cost.reference.root == pytest.approx(spec.nominal_height)
     assert np.isfinite(policy.last_cost).all() and not task.backend.diverged.any()
+
+
+def test_unstable_rollout_warnings_are_counted_not_printed_and_the_handler_comes_back(capfd):
+    import mujoco
+
+    from frbench.backends.mujoco_model import CountedWarnings, route_warnings
+
+    route_warnings()
+    before = mujoco.get_mju_user_warning()
+    model = mujoco.MjModel.from_xml_string("<mujoco><worldbody><body><freejoint/><geom size='.1'/></body>"
+                                           "</worldbody></mujoco>")
+    with CountedWarnings() as muted:
+        for _ in range(2):  # MuJoCo tells each MjData's first warning of a kind only
+            data = mujoco.MjData(model)
+            data.qvel[:] = 1e30  # "Nan, Inf or huge value in QACC": MuJoCo resets the data and warns
+            mujoco.mj_step(model, data)
+    assert muted.count == 2
+    assert mujoco.get_mju_user_warning() is before
+    assert "QACC" not in capfd.readouterr().err

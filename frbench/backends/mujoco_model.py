@@ -119,6 +119,27 @@ def route_warnings() -> None:
         mujoco.set_mju_user_warning(_log_warning)
 
 
+class CountedWarnings:
+    """Within ``with CountedWarnings() as muted:`` MuJoCo's warnings are counted (``muted.count``), not logged: for
+    a sampling planner whose rollouts are expected to blow up now and then (the cheapest plans are never the
+    unstable ones). The handler before it comes back on exit."""
+
+    def __init__(self):
+        self.count = 0
+        self._before = None
+
+    def _count(self, message: str) -> None:
+        self.count += 1
+
+    def __enter__(self) -> "CountedWarnings":
+        self._before = mujoco.get_mju_user_warning()
+        mujoco.set_mju_user_warning(self._count)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        mujoco.set_mju_user_warning(self._before)
+
+
 def build_model(spec: RobotSpec, terrain, friction: float = 1.0) -> mujoco.MjModel:
     """Compiled model of ``spec`` on ``terrain``, from frbench's cache when it was compiled before.
 

@@ -28,6 +28,7 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
+from frbench.backends.mujoco_model import CountedWarnings
 from frbench.planning.config import PlannerConfig
 from frbench.planning.cost import Cost
 from frbench.planning.model import PlanningModel
@@ -79,6 +80,8 @@ class Sampler:
         self._state = np.empty((n, t, planning.n_state))
         self._sensordata = np.empty((n, t, model.nsensordata))
         self._q_columns = 1 + planning.qadr  # a full-physics state starts with the time
+        #: MuJoCo warnings of unstable candidate rollouts so far (counted, not printed: such plans cost the most)
+        self.unstable_warnings = 0
 
     def targets(self, knots: np.ndarray) -> np.ndarray:
         """Joint targets (…, C, n_joints) [rad] held during each of the C control steps of the horizon, from
@@ -109,8 +112,10 @@ class Sampler:
         control = self._control[:k]
         control[:, :, : self.n_joints] = np.repeat(targets, planning.substeps, axis=1)
         state, sensordata = self._state[:k], self._sensordata[:k]
-        rollout.rollout(planning.model, self.datas, np.broadcast_to(initial_state, (k, planning.n_state)), control,
-                        state=state, sensordata=sensordata, skip_checks=False)
+        with CountedWarnings() as unstable:
+            rollout.rollout(planning.model, self.datas, np.broadcast_to(initial_state, (k, planning.n_state)),
+                            control, state=state, sensordata=sensordata, skip_checks=False)
+        self.unstable_warnings += unstable.count
         ends = slice(planning.substeps - 1, None, planning.substeps)
         return self.cost(sensordata[:, ends], state[:, ends][..., self._q_columns], targets, ground, anchor)
 
