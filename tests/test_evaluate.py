@@ -257,3 +257,16 @@ def test_the_shipped_frnet_checkpoint_loads_and_acts():
     records = run_cell(Cell("go2", "mujoco", "flat", 1, 0, 2), "frnet")
     assert len(records) == 2 and all(np.isfinite(r["energy"]) for r in records)
     assert policy.supports(get_robot("go1")) and not policy.supports(get_robot("g1"))
+
+
+def test_results_record_the_commit_the_episodes_started_with(tmp_path, monkeypatch):
+    """A commit made while a long evaluation runs is not the code that ran its episodes."""
+    import frbench.evaluation.provenance as provenance
+
+    commits = iter(["a" * 40, "b" * 40, "c" * 40])
+    monkeypatch.setattr(provenance, "frbench_info",
+                        lambda: {"version": "x", "git_commit": next(commits), "git_dirty": False})
+    out = tmp_path / "r.json"
+    assert main(["evaluate", "--policy", "zero", "--robots", "go2", "--terrains", "flat", "--levels", "1",
+                 "--seeds", "0", "--episodes", "1", "--jobs", "1", "--out", str(out)]) == 0
+    assert json.loads(out.read_text())["frbench"]["git_commit"] == "a" * 40

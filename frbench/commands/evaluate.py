@@ -59,6 +59,7 @@ def run(args) -> int:
         run_grid,
         validate,
     )
+    from frbench.evaluation.provenance import frbench_info
     from frbench.evaluation.results import aggregate_table, initial_pose_table, results_table
     from frbench.io import atomic_write_text, check_output_path
 
@@ -85,9 +86,10 @@ def run(args) -> int:
         f"levels {','.join(map(str, request.levels))} | seeds {','.join(map(str, request.seeds))})",
         file=sys.stderr,
     )
+    code = frbench_info()  # the commit the episodes run, before they start
     with tqdm(total=len(cells), unit="cell", file=sys.stderr, dynamic_ncols=True) as bar:
         episodes = run_grid(request, progress=lambda cell: bar.update(1))
-    results = build_results(request, policy, episodes)
+    results = build_results(request, policy, episodes, code=code)
     for name, check in robot_checks.items():
         results["robots"][name]["check"] = check
     print(results_table(results["summary"], results["sim_to_sim"]))

@@ -128,8 +128,12 @@ def run_grid(request: EvaluationRequest, progress=None) -> list[dict]:
     return records
 
 
-def build_results(request: EvaluationRequest, policy, episodes: list[dict]) -> dict:
-    """The results document (see `frbench.evaluation.results`)."""
+def build_results(request: EvaluationRequest, policy, episodes: list[dict], code: dict | None = None) -> dict:
+    """The results document (see `frbench.evaluation.results`).
+
+    ``code``: `frbench_info()` taken when the episodes started (None: now); a long evaluation records the
+    commit it ran, not one made while it ran.
+    """
     from frbench.evaluation.provenance import frbench_info, library_versions
     from frbench.io import sha256_file
     from frbench.robots import get_robot
@@ -147,7 +151,7 @@ def build_results(request: EvaluationRequest, policy, episodes: list[dict]) -> d
     return {
         "schema_version": RESULTS_SCHEMA_VERSION,
         "protocol_version": PROTOCOL_VERSION,
-        "frbench": frbench_info(),
+        "frbench": code or frbench_info(),
         "versions": library_versions(),
         "created": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
         "policy": {
