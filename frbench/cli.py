@@ -27,6 +27,7 @@ COMMAND_MODULES = (
     "frbench.commands.leaderboard",
     "frbench.commands.verify",
     "frbench.commands.train",
+    "frbench.commands.distill",
     "frbench.commands.analyze",
     "frbench.commands.export",
     "frbench.commands.spec",

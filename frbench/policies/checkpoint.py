@@ -11,6 +11,7 @@ message naming the file and what was expected.
 
 from __future__ import annotations
 
+import importlib
 from pathlib import Path
 
 from frbench.errors import PolicyError
@@ -20,7 +21,7 @@ CHECKPOINT_FORMAT = "frbench-policy-v1"
 CHECKPOINT_LOADERS: dict[str, str] = {
     method: "frbench.policies.learned:load_learned_policy"
     for method in ("frnet", "frnet-no-mass", "frnet-no-contact", "frnet-no-est", "dreamriser", "rma", "rma-adaptation",
-                   "ppo")
+                   "ppo", "mpc-distill")
 }
 
 
@@ -51,8 +52,6 @@ def read_checkpoint(path: Path) -> dict:
 
 def load_checkpoint_policy(path: Path):
     """A policy built from the checkpoint at ``path``."""
-    import importlib
-
     data = read_checkpoint(path)
     method = data.get("method")
     if method not in CHECKPOINT_LOADERS:

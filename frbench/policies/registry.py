@@ -55,7 +55,8 @@ BUDGET_3M_POLICIES = ("frnet-3m", "frnet-no-mass-3m", "frnet-no-contact-3m", "fr
 
 #: Trained policies shipped with frbench: name → checkpoint file inside the package.
 SHIPPED_CHECKPOINTS = {"frnet": "checkpoints/frnet.pt",
-                       **{name: f"checkpoints/budget3m/{name}.pt" for name in BUDGET_3M_POLICIES}}
+                       **{name: f"checkpoints/budget3m/{name}.pt" for name in BUDGET_3M_POLICIES},
+                       "mpc-distilled-g1": "checkpoints/mpc-distilled-g1.pt"}
 
 
 def shipped_checkpoint(name: str) -> Path:
@@ -152,6 +153,8 @@ def describe_checkpoint(metadata: dict) -> str:
     """One line from a checkpoint's own config: method, env steps, training time, what it was trained on."""
     import json
 
+    if metadata.get("description"):  # a checkpoint that describes itself (e.g. a distilled policy)
+        return str(metadata["description"])
     config = json.loads(metadata.get("config_json") or "{}")
     env = config.get("env", {})
     if env.get("robot"):

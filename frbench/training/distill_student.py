@@ -1,0 +1,121 @@
+"""The distilled student: an rsl-rl MLP actor on the ``policy`` and ``history`` groups, its training and checkpoint.
+
+The actor is `rsl_rl.models.MLPModel` (deterministic output, observation normalisation), the actor of
+frbench's ``ppo`` method, so the checkpoint it is saved in (method ``mpc-distill``, format
+``frbench-policy-v1``) loads as a `frbench.policies.learned.LearnedPolicy`: joint targets
+q* = q̊ + a with action scale 1, every control step.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from frbench.io import atomic_write_bytes, atomic_write_text
+
+#: The checkpoint's training method (its loader: `frbench.policies.learned.load_learned_policy`).
+METHOD = "mpc-distill"
+GROUPS = ["policy", "history"]
+
+
+def actor_config(hidden) -> dict:
+    """The rsl-rl actor config stored in the checkpoint (``train_cfg.actor``)."""
+    return {"class_name": "rsl_rl.models:MLPModel", "hidden_dims": list(hidden), "activation": "elu",
+            "obs_normalization": True}
+
+
+def _new_actor(frame: int, frames: int, num_actions: int, hidden):
+    import torch
+    from rsl_rl.models import MLPModel
+    from tensordict import TensorDict
+
+    dummy = TensorDict({"policy": torch.zeros(1, frame), "history": torch.zeros(1, frames * frame)}, batch_size=[1])
+    config = actor_config(hidden)
+    config.pop("class_name")
+    return MLPModel(dummy, {"actor": GROUPS}, "actor", num_actions, **config)
+
+
+def build_actor(data: dict):
+    """The actor (eval mode) of a ``mpc-distill`` checkpoint dict."""
+    config = json.loads(data["config_json"])
+    frames, num_actions = int(data["history"]), int(data["num_actions"])
+    actor = _new_actor(6 + 3 * num_actions, frames, num_actions, config["train_cfg"]["actor"]["hidden_dims"])
+    actor.load_state_dict(data["actor_state_dict"])
+    return actor.eval()
+
+
+def _inputs(o_t: np.ndarray, history: np.ndarray):
+    import torch
+    from tensordict import TensorDict
+
+    return TensorDict({"policy": torch.as_tensor(o_t, dtype=torch.float32),
+                       "history": torch.as_tensor(history, dtype=torch.float32)}, batch_size=[len(o_t)])
+
+
+def student_actions(actor, o_t: np.ndarray, history: np.ndarray) -> np.ndarray:
+    """Actions a (N, J) = q* − q̊ [rad] of the actor for o_t (N, F) and history (N, H·F)."""
+    import torch
+
+    with torch.inference_mode():
+        return actor(_inputs(o_t, history)).numpy().astype(np.float64)
+
+
+def train_student(obs: np.ndarray, history: np.ndarray, actions: np.ndarray, config, round_index: int):
+    """A new actor fitted to (obs (M, F), history (M, H·F)) → teacher actions (M, J) [rad] by MSE with Adam:
+    ``config.epochs`` passes in minibatches of ``config.minibatch``, seeded by (``config.seed``, round).
+    The normaliser takes the whole dataset's mean and spread. Returns (actor, last epoch's mean MSE [rad²])."""
+    import torch
+
+    torch.manual_seed(config.seed * 1000 + round_index)
+    generator = torch.Generator().manual_seed(config.seed * 1000 + round_index)
+    actor = _new_actor(obs.shape[1], config.frames, actions.shape[1], config.hidden)
+    inputs = _inputs(obs, history)
+    targets = torch.as_tensor(actions, dtype=torch.float32)
+    actor.obs_normalizer.update(torch.cat([inputs["policy"], inputs["history"]], dim=-1))
+    actor.eval()  # the normaliser keeps the dataset's statistics
+    optimizer = torch.optim.Adam(actor.parameters(), lr=config.learning_rate)
+    loss_sum = 0.0
+    for _ in range(config.epochs):
+        order = torch.randperm(len(obs), generator=generator)
+        loss_sum = 0.0
+        for start in range(0, len(obs), config.minibatch):
+            index = order[start:start + config.minibatch]
+            loss = torch.nn.functional.mse_loss(actor(inputs[index]), targets[index])
+            optimizer.zero_grad()
+            loss.backward()
+            optimizer.step()
+            loss_sum += float(loss.detach()) * len(index)
+    return actor.eval(), loss_sum / len(obs)
+
+
+def save_student(path: Path, actor, config, round_index: int, dataset: dict) -> None:
+    """Save the student as a frbench policy checkpoint at ``path`` plus its ``.config.json`` sidecar.
+
+    ``dataset``: episodes, samples and cpu_s (the teacher's CPU seconds) it was trained on."""
+    import io
+
+    import torch
+
+    from frbench.policies.checkpoint import CHECKPOINT_FORMAT
+    from frbench.robots import get_robot
+
+    spec = get_robot(config.robot)
+    record = {"method": METHOD,
+              "env": {"robot": config.robot, "backend": "+".join(config.simulators), "history": config.frames,
+                      "action_scale": 1.0, "action_hold": 1, "base_controller": None},
+              "train_cfg": {"obs_groups": {"actor": GROUPS}, "actor": actor_config(config.hidden)},
+              "distill": {**config.as_dict(), "round": round_index, "dataset": dataset}}
+    description = (f"{METHOD}: an MLP on proprioception (history {config.frames}) distilled from {config.teacher} "
+                   f"by DAgger ({round_index + 1} rounds, round 0 behaviour cloning) on {dataset['episodes']} "
+                   f"{config.robot} {config.terrain} level-{config.level} episodes ({dataset['samples']} samples, "
+                   f"{dataset['cpu_s'] / 60:.0f} teacher CPU min) in {' and '.join(config.simulators)}")
+    data = {"format": CHECKPOINT_FORMAT, "method": METHOD, "config_json": json.dumps(record, sort_keys=True),
+            "actor_state_dict": actor.state_dict(), "action_scale": 1.0, "history": config.frames,
+            "num_actions": spec.n_joints, "robot_kind": spec.kind, "env_steps": dataset["samples"],
+            "wall_s": None, "description": description}
+    buffer = io.BytesIO()
+    torch.save(data, buffer)
+    atomic_write_bytes(path, buffer.getvalue())
+    atomic_write_text(Path(path).with_suffix(".config.json"), json.dumps(record, indent=1, sort_keys=True) + "\n")
