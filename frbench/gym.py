@@ -9,6 +9,8 @@ registers nothing):
   vectorization_mode="vector_entry_point", ...)`` — a batched
   `FallRecoveryVectorEnv` on one backend batch.
 
+Both envs are shells over the core environment (`frbench.tasks.core_env.CoreEnv`,
+which the training env shares): they turn its arrays into Gymnasium's spaces.
 The episodes are the benchmark's (`frbench.tasks.recovery.RecoveryTask`: the
 same fallen starts, settle, physics, success test and metrics as ``frbench
 evaluate``), 5 s = 250 control steps at 50 Hz.
@@ -56,6 +58,7 @@ from gymnasium.vector.utils import batch_space
 from frbench.terrains import height_at
 from frbench.tasks.actions import ACTION_SCALE, DirectTargets
 from frbench.tasks.observations import observation_bounds
+from frbench.training.action_hold import HeldAction
 from frbench.training.step_reward import HeadPoints, StepReward
 
 ENV_ID = "frbench/FallRecovery-v1"
@@ -81,7 +84,8 @@ def reward_config(reward, kind: str):
 
 
 class FallRecoveryVectorEnv(VectorEnv):
-    """``num_envs`` recovery episodes of one robot on one terrain, batched in one backend (module docstring)."""
+    """``num_envs`` recovery episodes of one robot on one terrain: a shell over `frbench.tasks.core_env.CoreEnv`
+    (``core``) that converts its arrays to Gymnasium's spaces (module docstring)."""
 
     metadata = {"autoreset_mode": AutoresetMode.SAME_STEP, "render_modes": ["rgb_array"], "render_fps": RENDER_FPS}
 
@@ -101,21 +105,21 @@ class FallRecoveryVectorEnv(VectorEnv):
             from frbench.render import use_headless_gl
 
             use_headless_gl()  # before the simulator imports mujoco
-        from frbench.tasks.recovery import RecoveryTask
+        from frbench.tasks.core_env import CoreEnv
 
         self.spec_robot = spec = get_robot(robot)
         self.num_envs, self.backend_name, self.render_mode, self.render_size = num_envs, backend, render_mode, render_size
         self.action_scale = float(action_scale)
         self.terrain = make_terrain(terrain, level, terrain_seed)
         self.terrain_label = f"{terrain} level {level}"
-        self.task = RecoveryTask(spec, backend, self.terrain, num_envs)
         head = HeadPoints([spec], np.zeros(num_envs, dtype=int)) if spec.kind == "humanoid" else None
         self.step_reward = StepReward(reward_config(reward, spec.kind), spec, spec.nominal_height,
                                       lambda xy: height_at(self.terrain, xy), head)
         self.episode_steps = EPISODE_STEPS
         n = spec.n_joints
         self.default_pose = np.asarray(spec.default_pose)
-        self.action_transform = DirectTargets(self.default_pose, self.action_scale)
+        self.core = CoreEnv(spec, backend, self.terrain, num_envs, hold=HeldAction(1), reward=self.step_reward,
+                            transform=DirectTargets(self.default_pose, self.action_scale), episode_steps=EPISODE_STEPS)
         low, high = observation_bounds(spec)
         self.single_observation_space = gymnasium.spaces.Box(low, high, dtype=np.float32)
         self.single_action_space = gymnasium.spaces.Box(-1.0, 1.0, shape=(n,), dtype=np.float32)
@@ -126,83 +130,59 @@ class FallRecoveryVectorEnv(VectorEnv):
 
     # -- observations, actions, rewards ---------------------------------------------------------------------
 
-    def _flat(self, obs: dict) -> np.ndarray:
-        from frbench.tasks.observations import flatten
-
-        flat = np.nan_to_num(flatten(obs, self.default_pose), nan=0.0, posinf=0.0, neginf=0.0)
+    def _flat(self) -> np.ndarray:
+        """The core env's o_t (N, 6 + 3J) as the observation space's float32, NaN and infinities as 0, clipped."""
+        flat = np.nan_to_num(self.core.flat_observation(), nan=0.0, posinf=0.0, neginf=0.0)
         return np.clip(flat, self.single_observation_space.low, self.single_observation_space.high).astype(np.float32)
 
-    def targets(self, actions) -> np.ndarray:
-        """Joint targets q* (N, n_joints) [rad] of normalised actions (N, n_joints) (clipped to [−1, 1]): the
-        training env's action transform (`frbench.tasks.actions.DirectTargets`)."""
-        actions = np.clip(np.asarray(actions, dtype=np.float64).reshape(self.num_envs, -1), -1.0, 1.0)
-        return self.action_transform.targets(getattr(self.task, "state", None), actions)  # no state before a reset
+    def _actions(self, actions) -> np.ndarray:
+        """Normalised actions as (N, n_joints) float64, clipped to the action space [−1, 1]."""
+        return np.clip(np.asarray(actions, dtype=np.float64).reshape(self.num_envs, -1), -1.0, 1.0)
 
-    def _reward(self, actions: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        """The step's reward (N,) and weighted terms (`StepReward`, the trainer's), both 0 where diverged."""
-        total, terms, alive = self.step_reward(self.task, actions, self._actions[0], self._actions[1], self._qd_prev)
-        return total, {k: np.where(alive, np.nan_to_num(v), 0.0) for k, v in terms.items()}
+    def targets(self, actions) -> np.ndarray:
+        """Joint targets q* (N, n_joints) [rad] of normalised actions (N, n_joints) (clipped to [−1, 1]): the core
+        env's action transform (`frbench.tasks.actions.DirectTargets`)."""
+        state = getattr(self.core, "state", None)  # none before a reset
+        return self.core.transform.targets(state, self._actions(actions))
+
+    def _step(self, actions) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray], bool]:
+        """One core env step of normalised ``actions``: (observation (N, ·) float32, reward (N,), weighted reward
+        terms (`StepReward`, the trainer's; 0 where diverged), whether the episodes are over)."""
+        reward, terms, alive = self.core.step(self._actions(actions))
+        terms = {k: np.where(alive, np.nan_to_num(v), 0.0) for k, v in terms.items()}
+        return self._flat(), reward, terms, self.core.done
 
     # -- episodes -------------------------------------------------------------------------------------------
 
-    def _new_episodes(self) -> dict:
-        from frbench.tasks.initial_states import FallenStarts, draw_start
-
-        rows = [draw_start(self.spec_robot, self.terrain, self._rng) for _ in range(self.num_envs)]
-        starts = FallenStarts(np.array([r[0] for r in rows]), np.array([r[1] for r in rows]),
-                              np.array([r[2] for r in rows]), [r[3] for r in rows])
-        obs = self.task.reset(starts)
-        self._qd_prev = self.task.state.qd.copy()
-        zeros = np.zeros((self.num_envs, self.spec_robot.n_joints))
-        self._actions = (zeros, zeros)  # a_{t-1}, a_{t-2}
+    def _new_episodes(self) -> np.ndarray:
+        """New fallen starts (drawn from the env's generator) for every environment; the first observation."""
+        self.core.reset(self.core.draw_fallen(self._rng, self.terrain))
+        self.core.begin()
         if self._renderer is not None:
             for k in range(self.num_envs):
                 self._renderer.forget(k)
-        return obs
-
-    def _success_info(self) -> dict:
-        tracker, signals = self.task.success, self.task.signals
-        if self.spec_robot.kind == "humanoid":
-            upright = signals.height > tracker.up_height
-        else:
-            upright = tracker.upright(signals)
-        return {"success": tracker.success.copy(), "upright": np.asarray(upright, dtype=bool),
-                "time_to_recover": tracker.time_to_recover.copy(),
-                "diverged": self.task.physics_diverged | self.task.settle_diverged}
+        return self._flat()
 
     def episode_metrics(self) -> dict[str, np.ndarray]:
         """The per-episode record of ``frbench evaluate`` so far, each (N,) (time_to_recover NaN if none)."""
-        success, metrics = self.task.success, self.task.metrics
-        diverged = metrics.diverged | self.task.settle_diverged
-        return {"success": success.success & ~diverged, "time_to_recover": success.time_to_recover.copy(),
-                "final_displacement": metrics.final_displacement.copy(),
-                "max_displacement": metrics.max_displacement.copy(), "energy": metrics.energy.copy(),
-                "smoothness": np.asarray(metrics.smoothness).copy(),
-                "peak_contact_force": metrics.peak_contact_force.copy(), "rolled_over": metrics.rolled_over.copy(),
-                "diverged": diverged.copy()}
+        return self.core.episode_record()
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Draw new fallen starts (seeded) for every environment."""
         if seed is not None:
             self._rng = np.random.default_rng(seed)
-        obs = self._new_episodes()
-        return self._flat(obs), {}
+        return self._new_episodes(), {}
 
     def step(self, actions):
         """Apply normalised actions (num_envs, n_joints); all episodes truncate together after 250 steps."""
-        actions = np.clip(np.asarray(actions, dtype=np.float64).reshape(self.num_envs, -1), -1.0, 1.0)
-        obs = self.task.step(self.targets(actions))
-        reward, terms = self._reward(actions)
-        self._qd_prev = self.task.state.qd.copy()
-        self._actions = (actions, self._actions[0])
+        flat, reward, terms, done = self._step(actions)
         terminated = np.zeros(self.num_envs, dtype=bool)
-        truncated = np.full(self.num_envs, self.task.t >= self.episode_steps)
-        infos = {**self._success_info(), "reward_terms": terms}
-        flat = self._flat(obs)
-        if truncated.all():
+        truncated = np.full(self.num_envs, done)
+        infos = {**self.core.success_info(), "reward_terms": terms}
+        if done:
             infos["episode_metrics"] = self.episode_metrics()
             infos["final_obs"] = flat
-            flat = self._flat(self._new_episodes())
+            flat = self._new_episodes()
         return flat, reward.astype(np.float32), terminated, truncated, infos
 
     # -- rendering ------------------------------------------------------------------------------------------
@@ -214,11 +194,11 @@ class FallRecoveryVectorEnv(VectorEnv):
 
         if self._renderer is None:
             self._renderer = SceneRenderer(self.spec_robot, self.terrain, *self.render_size)
-        s = self.task.state
-        recovered = self.task.success.success[row] if hasattr(self.task, "success") else False
+        s = self.core.state
+        recovered = self.core.success.success[row] if hasattr(self.core, "success") else False
         text = caption(f"{self.spec_robot.name}, {self.terrain_label}",
-                       SIMULATOR_LABELS.get(self.backend_name, self.backend_name), self.task.t * CONTROL_DT,
-                       float(self.task.success.time_to_recover[row]) if recovered else None)
+                       SIMULATOR_LABELS.get(self.backend_name, self.backend_name), self.core.t * CONTROL_DT,
+                       float(self.core.success.time_to_recover[row]) if recovered else None)
         return self._renderer.frame(s.base_pos[row], s.base_quat[row], s.q[row], text, track=row)
 
     def render(self):
@@ -232,7 +212,7 @@ class FallRecoveryVectorEnv(VectorEnv):
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
-        self.task.close()
+        self.core.close()
 
 
 class FallRecoveryEnv(gymnasium.Env):
@@ -255,17 +235,12 @@ class FallRecoveryEnv(gymnasium.Env):
     def step(self, action):
         """Apply a normalised action (n_joints,) in [−1, 1]: q* = q̊ + action_scale · a."""
         vector = self._vector
-        actions = np.clip(np.asarray(action, dtype=np.float64)[None], -1.0, 1.0)
-        obs = vector.task.step(vector.targets(actions))
-        reward, terms = vector._reward(actions)
-        vector._qd_prev = vector.task.state.qd.copy()
-        vector._actions = (actions, vector._actions[0])
-        truncated = vector.task.t >= vector.episode_steps
-        info = _first_row(vector._success_info())
+        flat, reward, terms, truncated = vector._step(np.asarray(action)[None])
+        info = _first_row(vector.core.success_info())
         info["reward_terms"] = {k: float(v[0]) for k, v in terms.items()}
         if truncated:
             info["episode_metrics"] = _first_row(vector.episode_metrics())
-        return vector._flat(obs)[0], float(reward[0]), False, bool(truncated), info
+        return flat[0], float(reward[0]), False, bool(truncated), info
 
     def render(self):
         """``render_mode="rgb_array"``: an RGB image (H, W, 3) uint8; otherwise None."""

@@ -12,11 +12,11 @@ from frbench.training.env import RecoveryTrainingEnv
 
 def _same_start(gym_env, train_env) -> None:
     """Both envs restart from the gym's settled fallen starts, placed on the training env's flat tiles."""
-    start = gym_env.task.state.copy()
+    start = gym_env.core.state.copy()
     rows = np.arange(gym_env.num_envs)
     offsets = np.array([train_env.grid.offsets[(int(f), int(level))]
                         for f, level in zip(train_env.curriculum.family, train_env.curriculum.level)])
-    gym_env.task.restart(rows, start)
+    gym_env.core.restart(rows, start)
     moved = start.copy()
     moved.base_pos[:, :2] += offsets
     train_env.task.restart(rows, moved)

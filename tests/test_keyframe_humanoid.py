@@ -19,6 +19,7 @@ from frbench.policies.keyframe_humanoid import (
 )
 from frbench.policies.registry import load_policy
 from frbench.robots import get_robot
+from frbench.backends import make_backend
 from tests.test_scripted import _obs
 from tools.keyframe_search import (
     episode_scores,
@@ -282,7 +283,7 @@ def _phases_and_success(level: int, seed: int, episode: int) -> tuple[str, list[
 
     spec, terrain = get_robot("g1"), make_terrain("flat", level, seed)
     starts = draw_starts(spec, terrain, "flat", level, seed, range(episode + 1))
-    task = RecoveryTask(spec, "mujoco", terrain, episode + 1)
+    task = RecoveryTask(spec, make_backend("mujoco", spec, episode + 1, terrain=terrain), terrain, episode + 1)
     obs, policy, phases = task.reset(starts), KeyframeHumanoidPolicy(), []
     policy.reset(spec, episode + 1)
     for _ in range(EPISODE_STEPS):
@@ -290,7 +291,7 @@ def _phases_and_success(level: int, seed: int, episode: int) -> tuple[str, list[
         if not phases or phases[-1] != PHASE_NAMES[policy.phase[episode]]:
             phases.append(PHASE_NAMES[policy.phase[episode]])
     success = bool(task.success.success[episode])
-    task.close()
+    task.backend.close()
     return starts.kinds[episode], phases, success
 
 

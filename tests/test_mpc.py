@@ -19,6 +19,7 @@ from frbench.robots import get_robot
 from frbench.tasks.initial_states import draw_starts
 from frbench.tasks.recovery import RecoveryTask
 from frbench.terrains import make_terrain
+from frbench.backends import make_backend
 
 TINY = PlannerConfig(samples=8, horizon=0.2, knots=3, replan_steps=2, planning_dt=0.005)
 
@@ -28,9 +29,9 @@ def _lying(robot: str, episode: int):
     """(spec, terrain, the settled fallen state of one protocol start in MuJoCo, its kind)."""
     spec, terrain = get_robot(robot), make_terrain("flat", 1, 0)
     starts = draw_starts(spec, terrain, "flat", 1, 0, [episode])
-    task = RecoveryTask(spec, "mujoco", terrain, 1)
+    task = RecoveryTask(spec, make_backend("mujoco", spec, 1, terrain=terrain), terrain, 1)
     task.reset(starts)
-    task.close()
+    task.backend.close()
     return spec, terrain, task.state, task.starts.kinds[0]
 
 
@@ -72,7 +73,7 @@ def test_planning_copy_at_the_acting_step_predicts_the_mujoco_backend():
     backend's state ends where the backend ends (the state maps onto qpos/qvel as is)."""
     spec, terrain, _, _ = _lying("g1", 2)
     starts = draw_starts(spec, terrain, "flat", 1, 0, [2])
-    task = RecoveryTask(spec, "mujoco", terrain, 1)
+    task = RecoveryTask(spec, make_backend("mujoco", spec, 1, terrain=terrain), terrain, 1)
     try:
         task.reset(starts)
         config = PlannerConfig(samples=3, horizon=0.1, planning_dt=spec.physics_dt)
@@ -85,7 +86,7 @@ def test_planning_copy_at_the_acting_step_predicts_the_mujoco_backend():
         for _ in range(5):
             task.step(targets[None])
     finally:
-        task.close()
+        task.backend.close()
     predicted_q = states[0, -1, 1 + planning.qadr]
     moved = np.abs(task.state.q[0] - starts.q[0]).max()
     assert moved > 0.05

@@ -13,6 +13,7 @@ import pytest
 from frbench.cli import main
 from frbench.policies.registry import load_policy
 from frbench.robots import get_robot
+from frbench.backends import make_backend
 from policy_factory import POLICY_FILE, evaluate, export_onnx, mlp
 
 ort = pytest.importorskip("onnxruntime")
@@ -43,7 +44,7 @@ def _task_steps(num_envs: int = 4, steps: int = 30):
     from frbench.terrains import make_terrain
 
     spec, terrain = get_robot("go2"), make_terrain("flat", 1, 0)
-    task = RecoveryTask(spec, "mujoco", terrain, num_envs)
+    task = RecoveryTask(spec, make_backend("mujoco", spec, num_envs, terrain=terrain), terrain, num_envs)
     obs = task.reset(draw_starts(spec, terrain, "flat", 1, 0, range(num_envs)))
     driver = load_policy("frnet")
     driver.reset(spec, num_envs)
@@ -52,7 +53,7 @@ def _task_steps(num_envs: int = 4, steps: int = 30):
             yield obs
             obs = task.step(driver.act(obs))
     finally:
-        task.close()
+        task.backend.close()
 
 
 def test_frnet_onnx_export_reproduces_the_checkpoint_s_actions(frnet_onnx):
@@ -181,8 +182,8 @@ def test_an_sb3_model_sees_the_gym_env_s_observations_and_acts_as_there(sb3_mode
     policy.reset(env.spec_robot, 2)
     try:
         for _ in range(5):
-            targets = policy.act(env.task.observation())
-            np.testing.assert_array_equal(policy.model_inputs(env.task.observation())["obs"], flat)  # the model's input
+            targets = policy.act(env.core.observation())
+            np.testing.assert_array_equal(policy.model_inputs(env.core.observation())["obs"], flat)  # the model's input
             actions, _ = model.predict(flat, deterministic=True)
             np.testing.assert_allclose(targets, env.targets(actions), atol=1e-12)
             flat = env.step(actions)[0]

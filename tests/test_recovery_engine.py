@@ -1,4 +1,4 @@
-"""The episode engine: one `RecoveryTask` whether handed a backend name or instance; tasks import no simulator."""
+"""The episode engine: a `RecoveryTask` works on the backend it is handed and never closes it; tasks import no simulator."""
 
 from __future__ import annotations
 
@@ -6,11 +6,12 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 from frbench.backends import make_backend
 from frbench.robots import get_robot
 from frbench.tasks.initial_states import draw_starts
-from frbench.tasks.recovery import SETTLE_STEPS, RecoveryTask, settle_params
+from frbench.tasks.recovery import SETTLE_STEPS, RecoveryTask, open_backend, settle_params
 from frbench.terrains import make_terrain
 
 
@@ -21,27 +22,32 @@ def _rollout(task, starts, steps=10):
     return obs
 
 
-def test_a_backend_instance_runs_the_same_episode_as_a_backend_name():
+def test_the_task_runs_on_the_backend_it_is_given_and_leaves_closing_it_to_its_builder():
     spec, terrain = get_robot("go2"), make_terrain("stairs", 5, 0)
     starts = draw_starts(spec, terrain, "stairs", 5, 0, range(2))
-    by_name = RecoveryTask(spec, "mujoco", terrain, 2)
-    by_instance = RecoveryTask(spec, make_backend("mujoco", spec, 2, terrain=terrain), terrain, 2)
-    try:
-        for a, b in zip(_rollout(by_name, starts), _rollout(by_instance, starts)):
+    closed = []
+    with open_backend("mujoco", spec, 2, terrain) as physics, open_backend("mujoco", spec, 2, terrain) as again:
+        free = physics.close
+        physics.close = lambda: (closed.append("closed"), free())  # counts, then frees the simulator
+        first, second = RecoveryTask(spec, physics, terrain, 2), RecoveryTask(spec, again, terrain, 2)
+        assert first.backend is physics and not hasattr(first, "close")
+        for a, b in zip(_rollout(first, starts), _rollout(second, starts)):
             for key in a:
                 np.testing.assert_array_equal(a[key], b[key])
-        np.testing.assert_array_equal(by_name.metrics.energy, by_instance.metrics.energy)
-        assert by_name.t == by_instance.t == 10
-        assert by_name.signals.height.shape == (2,) and by_name.alive.all()
-    finally:
-        by_name.close()
-        by_instance.close()
+        np.testing.assert_array_equal(first.metrics.energy, second.metrics.energy)
+        assert first.t == second.t == 10 and first.metrics.energy.min() > 0.0
+        assert first.signals.height.shape == (2,) and first.alive.all()
+        assert closed == []  # ten steps and a reset: the task never closed its physics
+    assert closed == ["closed"]  # the builder (open_backend) did, once
+    with pytest.raises(TypeError, match="expected a built backend"):
+        RecoveryTask(spec, "mujoco", terrain, 2)
 
 
 def test_a_restart_moves_displacement_to_the_new_start_and_a_custom_ground_is_read():
     spec, terrain = get_robot("go2"), make_terrain("flat", 1, 0)
     starts = draw_starts(spec, terrain, "flat", 1, 0, range(2))
-    task = RecoveryTask(spec, "mujoco", terrain, 2, ground_height=lambda xy: np.full(len(xy), -1.0),
+    task = RecoveryTask(spec, make_backend("mujoco", spec, 2, terrain=terrain), terrain, 2,
+                        ground_height=lambda xy: np.full(len(xy), -1.0),
                         track_metrics=False)
     try:
         task.reset(starts, settle_steps=2)
@@ -53,7 +59,7 @@ def test_a_restart_moves_displacement_to_the_new_start_and_a_custom_ground_is_re
         task.step(task.state.q)
         np.testing.assert_allclose(task.signals.height, task.state.base_pos[:, 2] + 1.0)  # ground at -1 m
     finally:
-        task.close()
+        task.backend.close()
 
 
 def test_the_settle_holds_the_joints_on_scaled_gains_without_motor_friction():

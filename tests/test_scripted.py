@@ -8,6 +8,7 @@ import pytest
 from frbench.policies.scripted import BELLY, FOLD, HOLD, RAMP_STEPS, ROLL_A, ROLL_B, STAND, TOPPLE, ScriptedPolicy
 from frbench.robots import get_robot
 from frbench.tasks.protocol import STANDARD_ROBOTS
+from frbench.backends import make_backend
 
 QUADRUPEDS = STANDARD_ROBOTS  # go2, go1, aliengo, spot_like, lite3_like
 
@@ -165,7 +166,8 @@ def _episode(policy, spec, starts):
     from frbench.tasks.recovery import EPISODE_STEPS, RecoveryTask
     from frbench.terrains import make_terrain
 
-    task = RecoveryTask(spec, "mujoco", make_terrain("flat", 1, 0), len(starts.kinds))
+    terrain, n = make_terrain("flat", 1, 0), len(starts.kinds)
+    task = RecoveryTask(spec, make_backend("mujoco", spec, n, terrain=terrain), terrain, n)
     try:
         obs = task.reset(starts)
         policy.reset(spec, len(starts.kinds))
@@ -173,7 +175,7 @@ def _episode(policy, spec, starts):
             obs = task.step(policy.act(obs))
         return task.success.success.copy()
     finally:
-        task.close()
+        task.backend.close()
 
 
 def test_go2_gets_up_from_its_back_in_mujoco():

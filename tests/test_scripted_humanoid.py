@@ -21,6 +21,7 @@ from frbench.policies.scripted_humanoid import (
     HumanoidScriptedPolicy,
 )
 from frbench.robots import get_robot
+from frbench.backends import make_backend
 from tests.test_scripted import _obs
 
 UPRIGHT = (0.0, 0.0, -1.0)
@@ -165,7 +166,7 @@ def _episode(backend, seed, episode):
     terrain = make_terrain("flat", 1, seed)
     starts = draw_starts(spec, terrain, "flat", 1, seed, [episode], protocol_version="1.0")  # the measured starts
     starts.cell = None  # protocol 1.0 had no start screening
-    task = RecoveryTask(spec, backend, terrain, 1)
+    task = RecoveryTask(spec, make_backend(backend, spec, 1, terrain=terrain), terrain, 1)
     policy = HumanoidScriptedPolicy()
     heights, phases = [], []
     try:
@@ -176,7 +177,7 @@ def _episode(backend, seed, episode):
             heights.append(task.state.base_pos[0, 2])
             phases.append(int(policy.phase[0]))
     finally:
-        task.close()
+        task.backend.close()
     return starts.kinds[0], np.array(heights), np.array(phases), bool(task.success.success[0])
 
 
@@ -216,14 +217,15 @@ def test_hip_pitch_lock_in_a_deep_squat(monkeypatch):
         quat = _axis_quat(1, -(hip + 2.6 - 0.59))  # pelvis pitched so that the feet are flat
         lowest, _ = lowest_offset_and_reach(spec, quat, q0)
         starts = FallenStarts(np.array([[0.0, 0.0, 0.05 - lowest]]), quat[None], q0[None], ["squat"])
-        task = recovery.RecoveryTask(spec, "mujoco", make_terrain("flat", 1, 0), 1)
+        terrain = make_terrain("flat", 1, 0)
+        task = recovery.RecoveryTask(spec, make_backend("mujoco", spec, 1, terrain=terrain), terrain, 1)
         try:
             task.reset(starts)
             for t in range(60):
                 task.step((q0 if t < 30 else q1)[None])
             final[hip] = (task.state.q[0, hips], task.state.tau[0, hips])
         finally:
-            task.close()
+            task.backend.close()
     q_locked, tau_locked = final[-2.4]
     assert (q_locked < -2.4).all() and (np.abs(tau_locked) > 85.0).all()
     assert (np.abs(final[-2.0][0] - (-1.5)) < 0.15).all()

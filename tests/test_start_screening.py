@@ -8,6 +8,7 @@ from frbench.robots import get_robot
 from frbench.tasks.initial_states import draw_starts, episode_rng
 from frbench.tasks.start_screening import redraw, screen_starts
 from frbench.terrains import make_terrain
+from frbench.backends import make_backend
 
 
 def _starts():
@@ -69,10 +70,10 @@ def test_a_start_standing_on_its_feet_is_redrawn_in_the_simulator(monkeypatch):
     spec, terrain, starts = _starts()
     standing = RobotState.standing(spec, 1)
     starts.base_pos[0], starts.base_quat[0], starts.q[0] = standing.base_pos[0], standing.base_quat[0], standing.q[0]
-    task = RecoveryTask(spec, "mujoco", terrain, 3)
+    task = RecoveryTask(spec, make_backend("mujoco", spec, 3, terrain=terrain), terrain, 3)
     try:
         task.reset(starts)
         assert starts.attempts[0] >= 1 and starts.attempts[1:].tolist() == [0, 0]
         assert not task.settled_upright().any()
     finally:
-        task.close()
+        task.backend.close()

@@ -45,6 +45,7 @@ from frbench.policies.keyframe_humanoid import (
 )
 from tools.keyframe_states import STATE_FIELDS, parse_seeds
 from frbench.tasks.initial_states import FALL_KINDS, FallenStarts, draw_starts
+from frbench.backends import make_backend
 from frbench.tasks.recovery import EPISODE_STEPS, RecoveryTask
 
 #: The key frames were searched on protocol 1.0's starts; the seeds in keyframe_humanoid_params.json name those.
@@ -173,7 +174,8 @@ class Evaluator:
             q=np.tile(np.concatenate([d.q for d in drawn]), (popsize, 1)),
             kinds=self.kinds * popsize,
         )
-        self.task = RecoveryTask(self.spec, backend, make_terrain("flat", 1, starts[0][0]), popsize * len(starts))
+        terrain, n = make_terrain("flat", 1, starts[0][0]), popsize * len(starts)
+        self.task = RecoveryTask(self.spec, make_backend(backend, self.spec, n, terrain=terrain), terrain, n)
         self.roll, self.steps, self.deadline, self.late = roll, steps, deadline, late
 
     def run(self, parameters: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -189,7 +191,7 @@ class Evaluator:
         return _scored_rollout(self.task, policy, obs, self.steps, shape, self.deadline, self.late)
 
     def close(self) -> None:
-        self.task.close()
+        self.task.backend.close()
 
 
 def _scored_rollout(task, policy, obs: dict, steps: int, shape: tuple[int, int], deadline: int | None = None,
@@ -263,7 +265,8 @@ class RiseEvaluator:
         #: The controller's targets when the state was recorded (J,) per state, if the file has them (else the
         #: measured angles): the crouch then ramps from where the recorded run's targets were.
         self.targets = np.tile(data["targets"], (popsize, 1)) if "targets" in data else self.state.q
-        self.task = RecoveryTask(self.spec, backend, make_terrain("flat", 1, 0), n)
+        terrain = make_terrain("flat", 1, 0)
+        self.task = RecoveryTask(self.spec, make_backend(backend, self.spec, n, terrain=terrain), terrain, n)
         self.nominal = PhysicsParams.nominal(self.spec, n)
         self.kinds = ["recorded"] * self.n_starts
 
@@ -289,7 +292,7 @@ class RiseEvaluator:
         return _scored_rollout(task, policy, obs, self.steps, (self.popsize, self.n_starts), self.deadline)
 
     def close(self) -> None:
-        self.task.close()
+        self.task.backend.close()
 
 
 class PooledEvaluator:

@@ -41,7 +41,7 @@ def run_show(args) -> int:
     from frbench.render import SceneRenderer, write_png
     from frbench.robots import get_robot
     from frbench.tasks.initial_states import draw_starts
-    from frbench.tasks.recovery import RecoveryTask
+    from frbench.tasks.recovery import RecoveryTask, open_backend
     from frbench.terrains import FAMILIES, make_terrain
 
     check_output_path(args.out, suffixes=(".png",))
@@ -55,12 +55,10 @@ def run_show(args) -> int:
     spec = get_robot(args.robot)
     terrain = make_terrain(args.family, args.level, args.seed)
     starts = draw_starts(spec, terrain, args.family, args.level, args.seed, [0])
-    task = RecoveryTask(spec, "mujoco", terrain, 1)
-    try:
+    with open_backend("mujoco", spec, 1, terrain) as physics:
+        task = RecoveryTask(spec, physics, terrain, 1)
         task.reset(starts)
         state = task.state
-    finally:
-        task.close()
     renderer = SceneRenderer(spec, terrain, width, height)
     renderer.camera.distance *= 2.0
     renderer.camera.elevation = -32.0

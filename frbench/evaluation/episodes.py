@@ -1,10 +1,11 @@
 """The episode runner: one batch of protocol episodes of a policy, the one loop that evaluation, rendering, the
 analyses and the tools share.
 
-`run_episodes` builds the episode engine (`frbench.tasks.recovery.RecoveryTask`) for the starts, resets it and
-the policy, then for every control step asks the policy for joint targets, checks them (`checked_actions`:
-shape (N, J), finite; a one-line `PolicyError` otherwise) and steps the engine; it closes the simulator
-whatever happens. What callers need beyond the outcome comes in as callbacks:
+`run_episodes` builds the simulator (`frbench.tasks.recovery.open_backend`, unless handed a built one) and the
+episode engine over it (`frbench.tasks.recovery.RecoveryTask`), resets them and the policy, then for every
+control step asks the policy for joint targets, checks them (`checked_actions`: shape (N, J), finite; a one-line
+`PolicyError` otherwise) and steps the engine; it closes the simulator it built whatever happens (a simulator
+handed in stays open: its builder owns it). What callers need beyond the outcome comes in as callbacks:
 
 * ``on_reset(task)`` once after the reset (e.g. the first frame of a video);
 * ``on_step(task, targets)`` after each step, with the checked targets (N, J) [rad] just applied (frames,
@@ -12,15 +13,16 @@ whatever happens. What callers need beyond the outcome comes in as callbacks:
 
 A policy that declares ``uses_simulator_state`` (a planner such as ``mpc``, not a blind policy) gets the
 terrain and seed (``reset_episode``) and the simulator's `RobotState` before every action (``observe_state``).
-The returned task is closed; its ``success``, ``metrics``, ``state`` and ``starts`` stay readable.
+The returned task's simulator is closed (when built here); its ``success``, ``metrics``, ``state`` and ``starts`` stay readable.
 """
 
 from __future__ import annotations
 
+from contextlib import nullcontext
 from typing import Callable
 
 from frbench.policies.base import checked_actions
-from frbench.tasks.recovery import EPISODE_STEPS, RecoveryTask
+from frbench.tasks.recovery import EPISODE_STEPS, RecoveryTask, open_backend
 
 #: Returned by ``on_step`` to end the episodes before their last step.
 STOP = "stop"
@@ -34,8 +36,8 @@ def run_episodes(spec, backend, terrain, starts, policy, *, seed: int = 0, steps
     policy that plans on the simulator. ``check=False`` skips the action check (a tool's own trusted
     controller)."""
     n = len(starts.kinds)
-    task = RecoveryTask(spec, backend, terrain, n, noise_rng=noise_rng)
-    try:
+    with open_backend(backend, spec, n, terrain) if isinstance(backend, str) else nullcontext(backend) as physics:
+        task = RecoveryTask(spec, physics, terrain, n, noise_rng=noise_rng)
         obs = task.reset(starts)
         policy.reset(spec, n)
         privileged = getattr(policy, "uses_simulator_state", False)
@@ -52,6 +54,4 @@ def run_episodes(spec, backend, terrain, starts, policy, *, seed: int = 0, steps
             obs = task.step(targets)
             if on_step is not None and on_step(task, targets) is STOP:
                 break
-    finally:
-        task.close()
     return task

@@ -2,8 +2,11 @@
 
 The engine never owns a simulator's details: it talks to the backend protocol
 only, so it runs unchanged on MuJoCo, PyBullet and the split batch. It is the
-one episode of frbench: ``frbench evaluate``, the gymnasium env and the
-training env (`frbench.training.env`) all drive it. One episode:
+one episode of frbench: the episode runner (`frbench.evaluation.episodes`) and
+the core environment (`frbench.tasks.core_env`, under the gymnasium env and the
+training env) drive it. Like a dm_control task it receives the physics it works
+on: a built backend, which whoever built it (`open_backend`, the core
+environment) closes; the task never builds or closes one. One episode:
 
 1. ``reset(starts)``: place the drawn fallen configurations, settle them for
    ``settle_steps`` control steps (`SETTLE_STEPS` = `SETTLE_SECONDS` in the
@@ -24,7 +27,8 @@ from recorded states instead (demo and rise starts, `frbench.training.start_sour
 from __future__ import annotations
 
 from dataclasses import fields
-from typing import Callable
+from contextlib import contextmanager
+from typing import Callable, Iterator
 
 import numpy as np
 
@@ -48,6 +52,18 @@ _NO_EPISODE = object()
 CATCH_UP_STEPS = 128
 
 
+@contextmanager
+def open_backend(name: str, spec: RobotSpec, num_envs: int, terrain=None) -> Iterator:
+    """The backend ``name`` (`frbench.backends.make_backend`) with ``num_envs`` simulations of ``spec`` on
+    ``terrain``, closed when the ``with`` block ends: for a caller that builds the physics a `RecoveryTask`
+    works on (the task never closes it)."""
+    backend = make_backend(name, spec, num_envs, terrain=terrain)
+    try:
+        yield backend
+    finally:
+        backend.close()
+
+
 def settle_params(params: PhysicsParams) -> PhysicsParams:
     """The settle's physics: ``params``' gains scaled by `SETTLE_GAIN_SCALE` ("held softly"), its strength,
     friction and payload, no motor friction."""
@@ -60,8 +76,8 @@ class RecoveryTask:
 
     Args:
         spec: the robot (its joint limits clip the targets; its kind picks the success test).
-        backend: a backend instance (the `frbench.backends.base.Backend` protocol) with ``num_envs``
-            simulations, or a backend name (``"mujoco"``, ``"pybullet"``), built here on ``terrain``.
+        backend: a built backend (the `frbench.backends.base.Backend` protocol) with ``num_envs`` simulations
+            (`open_backend`); its builder owns it and closes it, the task does not.
         terrain: a `frbench.terrains.Terrain` (the ground height under the base is read from it), or None
             when ``ground_height`` is given.
         num_envs: episodes run side by side.
@@ -94,7 +110,9 @@ class RecoveryTask:
         self.spec = spec
         self.terrain = terrain
         self.num_envs = num_envs
-        self.backend = make_backend(backend, spec, num_envs, terrain=terrain) if isinstance(backend, str) else backend
+        if isinstance(backend, str):
+            raise TypeError(f"RecoveryTask(backend={backend!r}): expected a built backend (open_backend), not a name")
+        self.backend = backend
         if self.backend.num_envs != num_envs:
             raise ValueError(f"backend has {self.backend.num_envs} simulations, the task {num_envs} episodes")
         self.noise_rng = noise_rng
@@ -113,10 +131,6 @@ class RecoveryTask:
         self.default_pose = np.asarray(spec.default_pose)
         self.nominal = PhysicsParams.nominal(spec, num_envs)
         self.t = 0
-
-    def close(self) -> None:
-        """Free the simulator."""
-        self.backend.close()
 
     # -- the physics outside an episode's steps: start banks, the assist force, the critic's ground truth -------
     def drive(self, targets: np.ndarray) -> RobotState:

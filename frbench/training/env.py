@@ -275,7 +275,7 @@ class RecoveryTrainingEnv(VecEnv):
 
     def close(self) -> None:
         """Free the simulator."""
-        self.task.close()
+        self.backend.close()
 
 
 def _alive_mean(values: np.ndarray, alive: np.ndarray) -> float:

@@ -1,0 +1,235 @@
+"""The core environment: N recovery episodes that own their physics, under every learning interface.
+
+`CoreEnv` builds the simulator (`frbench.backends.make_backend`, N simulations, morphology variants allowed),
+runs the episode engine over it (`frbench.tasks.recovery.RecoveryTask`, which never builds or closes one) and
+frees the simulator in `close`. The rsl-rl `VecEnv` (`frbench.training.env`) and the Gymnasium envs
+(`frbench.gym`, single and vector) are shells over it: they convert types, devices and spaces. Batched over N
+robot instances it covers:
+
+* reset: `draw_fallen` draws the protocol's fallen starts (one terrain, or one tile per environment with its
+  world offset and robot), `reset` places, settles and screens them (the engine) with the assist force cleared
+  for the settle and set after it, `begin` starts the episode's actions. Start sources (demo and rise starts,
+  `frbench.training.start_sources`) record their banks through `drive` and put episodes on recorded states
+  through `restart`; the assist force (`frbench.training.assist`) pushes through `set_base_force`;
+* step: one decision `step(action)`: the action held (``hold``) for its control steps, each one
+  ``transform.targets(state, a_t)`` (an action transform, `frbench.tasks.actions`) → the engine's ``advance``
+  (clip to the joint limits, physics, signals, success test, metrics) → ``reward(task, a_t, a_{t−1}, a_{t−2},
+  q̇_prev)`` (the one reward, `frbench.training.step_reward.StepReward`), rewards and terms summed over the held
+  steps;
+* observations: `observation` (the engine's proprioception dict), `flat_observation` (its flat o_t) and
+  `policy_observation` (o_t with the previous action in policy units, the trainer's);
+* termination: episodes last ``episode_steps`` control steps and end together (`done`);
+* what an episode tells: `success_info` (after each step) and `episode_record` (the record ``frbench evaluate``
+  writes).
+
+The action transform, the held action (`frbench.training.action_hold.HeldAction`), the reward and the assist
+force are objects passed in: the ways actions become targets compose outside the env, and this module imports
+nothing above `tasks/`. Shapes: N environments, J joints; actions (N, J) in policy units.
+"""
+
+from __future__ import annotations
+
+from typing import Callable, Sequence
+
+import numpy as np
+
+from frbench.backends import make_backend, simulator_parts
+from frbench.backends.base import PhysicsParams, RobotState
+from frbench.robots.spec import RobotSpec
+from frbench.tasks.initial_states import FallenStarts, draw_start
+from frbench.tasks.observations import flatten
+from frbench.tasks.recovery import EPISODE_STEPS, SETTLE_STEPS, RecoveryTask
+
+
+class CoreEnv:
+    """N recovery episodes of ``spec`` (or of its ``variants``) in simulator ``backend`` (module docstring).
+
+    Args:
+        spec: the robot (the batch's first robot when ``variants`` are given).
+        backend: the simulator's name (``"mujoco"``, ``"pybullet"``, ``"mujoco+pybullet"``); built here, closed by
+            `close`.
+        terrain: the `Terrain` the simulator is built on (a world of tiles in training).
+        num_envs: N.
+        transform: the action transform (``reset(spec, N)``, ``targets(state, action) -> (N, J) [rad]``).
+        hold: the held action (`HeldAction`: ``begin``, ``decide``, ``current``, ``held``).
+        reward: ``reward(task, a_t, a_{t−1}, a_{t−2}, q̇_prev) -> (reward (N,), terms, alive (N,))``, or None
+            (no reward: zeros).
+        assist: an assist force (``clear(env)``, ``apply(env, env_steps)``) or None.
+        episode_steps: control steps per episode.
+        variants, noise_rng, ground_height, nominal_height, track_metrics, surface_rules: as in `make_backend`
+            and `RecoveryTask`.
+    """
+
+    def __init__(self, spec: RobotSpec, backend: str, terrain, num_envs: int, *, transform, hold,
+                 reward: Callable | None = None, assist=None, episode_steps: int = EPISODE_STEPS, variants=None,
+                 noise_rng=None, ground_height: Callable | None = None, nominal_height=None,
+                 track_metrics: bool = True, surface_rules: bool = True):
+        self.spec, self.terrain, self.num_envs = spec, terrain, int(num_envs)
+        self.default_pose = np.asarray(spec.default_pose)
+        self.transform, self.actions, self.reward, self.assist = transform, hold, reward, assist
+        self.episode_steps = int(episode_steps)
+        #: Env steps taken so far (N per control step): the schedules of start sources and the assist read it.
+        self.env_steps = 0
+        self.backend = make_backend(backend, spec, self.num_envs, terrain=terrain, variants=variants)
+        try:
+            self.task = RecoveryTask(spec, self.backend, terrain, self.num_envs, noise_rng=noise_rng,
+                                     ground_height=ground_height, nominal_height=nominal_height,
+                                     track_metrics=track_metrics, surface_rules=surface_rules)
+        except Exception:
+            self.backend.close()
+            raise
+
+    def close(self) -> None:
+        """Free the simulator (built here; the task never closes it)."""
+        self.backend.close()
+
+    # -- the engine's state, for the shells ---------------------------------------------------------------
+    @property
+    def state(self) -> RobotState:
+        return self.task.state
+
+    @property
+    def contacts(self):
+        return self.task.contacts
+
+    @property
+    def params(self) -> PhysicsParams:
+        """The current episode's `PhysicsParams`."""
+        return self.task.params
+
+    @property
+    def t(self) -> int:
+        """Control steps taken in the current episode."""
+        return self.task.t
+
+    @property
+    def success(self):
+        return self.task.success
+
+    @property
+    def signals(self):
+        return self.task.signals
+
+    @property
+    def done(self) -> bool:
+        """Whether the episodes (all together) have run their ``episode_steps``."""
+        return self.task.t >= self.episode_steps
+
+    @property
+    def physics_diverged(self) -> np.ndarray:
+        """(N,) bool: the simulation has diverged now."""
+        return self.task.physics_diverged
+
+    def whole_body_com(self) -> np.ndarray:
+        """Whole-body centre of mass (N, 3) [m], world frame, payload included."""
+        return self.task.whole_body_com()
+
+    def simulator_parts(self) -> list[tuple[str, slice]]:
+        """(simulator name, rows) of each simulator the batch runs (`frbench.backends.simulator_parts`)."""
+        return simulator_parts(self.backend)
+
+    # -- the physics outside an episode's steps: start sources and the assist force ---------------------------
+    def drive(self, targets: np.ndarray) -> RobotState:
+        """One control step of physics towards ``targets`` (N, J) [rad], not an episode step (start banks)."""
+        return self.task.drive(targets)
+
+    def restart(self, ids: np.ndarray, state: RobotState) -> None:
+        """Before the first step: episodes ``ids`` start from ``state`` (len(ids) rows) instead."""
+        self.task.restart(ids, state)
+
+    def set_base_force(self, force: np.ndarray) -> None:
+        """A constant external force (N, 3) [N], world frame, on each base's centre of mass until changed."""
+        self.task.set_base_force(force)
+
+    # -- episodes -----------------------------------------------------------------------------------------
+    def draw_fallen(self, rng: np.random.Generator, terrains, offsets: Sequence | None = None,
+                    specs: Sequence[RobotSpec] | None = None) -> FallenStarts:
+        """The protocol's fallen starts, one per environment, drawn from ``rng`` in environment order: on
+        ``terrains`` (one `Terrain`, or one per environment), moved by ``offsets`` (N × (dx, dy) [m], a tile's
+        place in the world; None: not moved), of robots ``specs`` (one per environment; default ``spec``)."""
+        n = self.num_envs
+        terrains = terrains if isinstance(terrains, (list, tuple)) else [terrains] * n
+        pos, quat, q = np.zeros((n, 3)), np.zeros((n, 4)), np.zeros((n, self.spec.n_joints))
+        kinds = []
+        for i in range(n):
+            p, o, j, kind = draw_start(self.spec if specs is None else specs[i], terrains[i], rng)
+            if offsets is not None:
+                dx, dy = offsets[i]
+                p = p + (dx, dy, 0.0)
+            pos[i], quat[i], q[i] = p, o, j
+            kinds.append(kind)
+        return FallenStarts(pos, quat, q, kinds)
+
+    def reset(self, starts: FallenStarts, params: PhysicsParams | None = None,
+              settle_steps: int = SETTLE_STEPS) -> None:
+        """Place, settle and screen ``starts`` under ``params`` (default nominal) for ``settle_steps`` control steps
+        (`RecoveryTask.reset`); the assist force is off during the settle and set for the episode after it."""
+        if self.assist is not None:
+            self.assist.clear(self)
+        self.task.reset(starts, params, settle_steps)
+        if self.assist is not None:
+            self.assist.apply(self, self.env_steps)
+
+    def begin(self, action: np.ndarray | None = None) -> None:
+        """Start the episodes' actions: a_{t−1} = a_{t−2} = ``action`` (N, J) (default zeros), the transform
+        reset."""
+        self.actions.begin(np.zeros((self.num_envs, self.spec.n_joints)) if action is None else action)
+        self.transform.reset(self.spec, self.num_envs)
+
+    # -- stepping -----------------------------------------------------------------------------------------
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray]:
+        """One decision ``action`` (N, J), held for its control steps (fewer when the episode ends first):
+        (reward (N,) and weighted terms name → (N,), both summed over the held steps, alive (N,) bool)."""
+        reward, term_sums, alive = np.zeros(self.num_envs), {}, None
+        for action_prev, action_prev2 in self.actions.decide(action, self.episode_steps - self.task.t):
+            step_reward, terms, alive = self._control_step(action_prev, action_prev2)
+            reward += step_reward
+            term_sums = {k: term_sums.get(k, 0.0) + v for k, v in terms.items()}
+        return reward, term_sums, alive
+
+    def _control_step(self, action_prev: np.ndarray, action_prev2: np.ndarray):
+        """One control step of the current action: targets, the engine's step, the reward; returns (reward (N,),
+        terms, alive (N,) bool)."""
+        task, action = self.task, self.actions.current
+        targets = self.transform.targets(task.state, action)
+        qd_prev = task.state.qd
+        task.advance(targets)
+        self.env_steps += self.num_envs
+        if self.reward is None:
+            return np.zeros(self.num_envs), {}, task.alive
+        return self.reward(task, action, action_prev, action_prev2, qd_prev)
+
+    # -- observations and what an episode tells ---------------------------------------------------------------
+    def observation(self) -> dict[str, np.ndarray]:
+        """The engine's proprioception (`frbench.tasks.observations.proprioception`)."""
+        return self.task.observation()
+
+    def flat_observation(self) -> np.ndarray:
+        """o_t (N, 6 + 3J), the previous action as target − q̊ [rad] (`frbench.tasks.observations.flatten`)."""
+        return flatten(self.task.observation(), self.default_pose)
+
+    def policy_observation(self) -> np.ndarray:
+        """o_t (N, 6 + 3J) with the previous action in policy units (the trainer's o_t)."""
+        o_t = self.flat_observation()
+        o_t[:, -self.spec.n_joints:] = self.actions.current
+        return o_t
+
+    def success_info(self) -> dict[str, np.ndarray]:
+        """After a step, each (N,): ``success`` (recovered so far), ``upright`` (the success test's pose condition
+        now; a humanoid's height condition), ``time_to_recover`` [s] (NaN until recovered), ``diverged``."""
+        tracker, signals = self.task.success, self.task.signals
+        upright = signals.height > tracker.up_height if self.spec.kind == "humanoid" else tracker.upright(signals)
+        return {"success": tracker.success.copy(), "upright": np.asarray(upright, dtype=bool),
+                "time_to_recover": tracker.time_to_recover.copy(),
+                "diverged": self.task.physics_diverged | self.task.settle_diverged}
+
+    def episode_record(self) -> dict[str, np.ndarray]:
+        """The per-episode record of ``frbench evaluate`` so far, each (N,) (time_to_recover NaN if none)."""
+        success, metrics = self.task.success, self.task.metrics
+        diverged = metrics.diverged | self.task.settle_diverged
+        return {"success": success.success & ~diverged, "time_to_recover": success.time_to_recover.copy(),
+                "final_displacement": metrics.final_displacement.copy(),
+                "max_displacement": metrics.max_displacement.copy(), "energy": metrics.energy.copy(),
+                "smoothness": np.asarray(metrics.smoothness).copy(),
+                "peak_contact_force": metrics.peak_contact_force.copy(), "rolled_over": metrics.rolled_over.copy(),
+                "diverged": diverged.copy()}
