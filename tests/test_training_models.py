@@ -14,7 +14,7 @@ from rsl_rl.runners import OnPolicyRunner
 from rsl_rl.utils import resolve_class
 
 from frbench.training.algorithm import EstimatorPPO, RMAAdaptation
-from frbench.training.estimator import Estimator, EstimatorConfig, EstimatorOutput
+from frbench.networks.estimator import Estimator, EstimatorConfig, EstimatorOutput
 from frbench.training.methods import METHODS, make_rma_adaptation_cfg, make_train_cfg
 
 torch.set_num_threads(1)

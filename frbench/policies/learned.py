@@ -9,11 +9,13 @@ joint targets q* = q̊ + action_scale · a for the robot being evaluated.
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
 
 from frbench.errors import PolicyError
+from frbench.policies.registry import load_base_controller
 from frbench.robots.spec import RobotSpec
 from frbench.tasks.observations import flatten
 
@@ -31,11 +33,20 @@ def deployable_group_widths(num_actions: int, frames: int, long_frames: int = 0)
     return widths
 
 
+#: Where the actors lived before :mod:`frbench.networks`; run configs of that time name it in ``class_name``.
+FORMER_ACTOR_MODULE, ACTOR_MODULE = "frbench.training.models:", "frbench.networks.models:"
+
+
+def current_class_path(class_name: str) -> str:
+    """``class_name`` ("module:Class") with a former actor module replaced by :mod:`frbench.networks.models`."""
+    if class_name.startswith(FORMER_ACTOR_MODULE):
+        return ACTOR_MODULE + class_name[len(FORMER_ACTOR_MODULE):]
+    return class_name
+
+
 def policy_name(method: str, checkpoint: Path) -> str:
     """A results-safe name: the run folder or file stem when it starts with the method (``ppo-3m``), else the
     method then the stem (``frnet-myrun``)."""
-    import re
-
     stem = checkpoint.parent.name if checkpoint.name == "policy.pt" else checkpoint.stem
     name = stem if stem.startswith(method) else f"{method}-{stem}"
     return re.sub(r"[^A-Za-z0-9._-]", "-", name)[:64]
@@ -84,7 +95,7 @@ class LearnedPolicy:
         self.gate_phases = config["env"].get("gate_phases")  # None (runs before it existed): the default rise
         self.action_hold = int(config["env"].get("action_hold", 1))  # control steps per decision
         self.long_frames = int(config["env"].get("long_history", 0)) if "long_history" in self.groups else 0
-        actor_class = resolve_callable(actor_cfg.pop("class_name"))
+        actor_class = resolve_callable(current_class_path(actor_cfg.pop("class_name")))
         widths = deployable_group_widths(self.num_actions, self.frames, self.long_frames)
         extrinsics = data["actor_state_dict"].get("extrinsics_normalizer._mean")
         self.ignored_widths = {g: int(extrinsics.shape[-1]) if extrinsics is not None else 11 for g in ignored}
@@ -100,8 +111,6 @@ class LearnedPolicy:
 
         self.base_controller = None
         if self.base_controller_name:
-            from frbench.policies.registry import load_base_controller
-
             self.base_controller = load_base_controller(self.base_controller_name,
                                                         config["env"].get("base_controller_parameters"))
 

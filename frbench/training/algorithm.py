@@ -39,8 +39,8 @@ from rsl_rl.algorithms import PPO
 from rsl_rl.env import VecEnv
 from rsl_rl.utils import resolve_class, resolve_obs_groups, resolve_optimizer
 
+from frbench.networks.models import EstimatorActor, RMAActor
 from frbench.training.distributed import all_reduce_gradients
-from frbench.training.models import EstimatorActor, RMAActor
 
 #: Estimator head → observation group holding its target (the environment contract).
 TARGET_GROUPS = {"mass": "mass", "contact": "contact", "velocity": "velocity"}

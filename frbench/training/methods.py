@@ -64,7 +64,7 @@ def _estimator_method(**heads) -> dict:
                  "encoder_hidden_dims": ESTIMATOR_HIDDEN, **heads}
     return {
         "obs_groups": {"actor": ["policy", "history"], "critic": ["privileged"]},
-        "actor": {"class_name": "frbench.training.models:EstimatorActor", "hidden_dims": ACTOR_HIDDEN,
+        "actor": {"class_name": "frbench.networks.models:EstimatorActor", "hidden_dims": ACTOR_HIDDEN,
                   "activation": "elu", "obs_normalization": True, "distribution_cfg": DISTRIBUTION,
                   "estimator": estimator},
         "critic": CRITIC,
@@ -81,7 +81,7 @@ METHODS: dict[str, dict] = {
     "dreamriser": _estimator_method(velocity=True),
     "rma": {
         "obs_groups": {"actor": ["policy", "extrinsics"], "critic": ["privileged"]},
-        "actor": {"class_name": "frbench.training.models:RMAActor", "hidden_dims": ACTOR_HIDDEN, "activation": "elu",
+        "actor": {"class_name": "frbench.networks.models:RMAActor", "hidden_dims": ACTOR_HIDDEN, "activation": "elu",
                   "obs_normalization": True, "distribution_cfg": DISTRIBUTION, "z_dim": 8,
                   "encoder_hidden_dims": [256, 128], "adaptation_frames": 50},
         "critic": CRITIC,

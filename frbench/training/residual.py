@@ -18,6 +18,8 @@ from typing import Mapping
 import numpy as np
 
 from frbench.backends.base import RobotState
+from frbench.policies.learned import residual_targets
+from frbench.policies.registry import load_base_controller
 from frbench.robots.spec import RobotSpec
 from frbench.tasks.observations import proprioception
 
@@ -32,8 +34,6 @@ class ResidualController:
 
     def __init__(self, name: str, parameters: Mapping[str, float], spec: RobotSpec, scale: float,
                  gated: bool = False, phases: tuple[str, ...] | None = None):
-        from frbench.policies.registry import load_base_controller
-
         self.name, self.parameters = name, dict(parameters)
         self.controller = load_base_controller(name, self.parameters)
         if gated and not hasattr(self.controller, "residual_gate"):
@@ -45,8 +45,6 @@ class ResidualController:
 
     def fresh_copy(self):
         """A new instance of the same base controller and parameters (its own phase state)."""
-        from frbench.policies.registry import load_base_controller
-
         return load_base_controller(self.name, self.parameters)
 
     def reset(self, spec: RobotSpec, num_envs: int) -> None:
@@ -55,8 +53,6 @@ class ResidualController:
 
     def targets(self, state: RobotState, action: np.ndarray) -> np.ndarray:
         """Joint targets (N, J) [rad]: the base controller's for ``state`` plus the (gated) residual ``action``."""
-        from frbench.policies.learned import residual_targets
-
         base = np.asarray(self.controller.act(proprioception(state, self.default_pose)), dtype=np.float64)
         return residual_targets(base, action, self.scale, self.controller, self.gated, self.phases)
 
