@@ -19,7 +19,7 @@ def _same_start(gym_env, train_env) -> None:
     gym_env.core.restart(rows, start)
     moved = start.copy()
     moved.base_pos[:, :2] += offsets
-    train_env.task.restart(rows, moved)
+    train_env.core.restart(rows, moved)
 
 
 # The two simulations differ in their terrain geoms (one tile, a grid of tiles) and solver warm starts: Go2's
@@ -35,14 +35,14 @@ def test_the_gym_env_and_the_training_env_give_equal_reward_terms(robot, steps, 
         gym_env.reset(seed=3)
         _same_start(gym_env, train_env)
         captured = []
-        reward_of = train_env.reward
+        reward_of = train_env.core.reward
 
         def capture(*args):
             out = reward_of(*args)
             captured.append(out)
             return out
 
-        train_env.reward = capture
+        train_env.core.reward = capture
         rng = np.random.default_rng(0)
         for _ in range(steps):
             action = rng.uniform(-1, 1, size=(n, gym_env.spec_robot.n_joints))

@@ -128,9 +128,9 @@ def test_a_resumed_run_can_start_a_reward_stage_with_the_papers_motion_penalties
     staged = TrainingRun(tmp_path / "run", total_steps=4 * 24 * 2, resume=True, checkpoint_every=1,
                          command="frbench train --resume run --motion-penalties 1", reward_stage=changes)
     for term in ("joint_velocity", "joint_acceleration", "joint_torques"):
-        assert staged.env.reward.config.weights[term] == PAPER_WEIGHTS[term]
-    assert staged.env.reward.config.weights["action_smoothing"] == -0.1
-    assert staged.env.reward.config.weights["safety_force"] == pytest.approx(0.1 * PAPER_WEIGHTS["safety_force"])
+        assert staged.env.core.reward.config.weights[term] == PAPER_WEIGHTS[term]
+    assert staged.env.core.reward.config.weights["action_smoothing"] == -0.1
+    assert staged.env.core.reward.config.weights["safety_force"] == pytest.approx(0.1 * PAPER_WEIGHTS["safety_force"])
     assert staged.env_steps == 96
     staged.train(progress_bar=False)
     config = json.loads((tmp_path / "run" / "config.json").read_text())
@@ -140,7 +140,7 @@ def test_a_resumed_run_can_start_a_reward_stage_with_the_papers_motion_penalties
     data = torch.load(tmp_path / "run" / "policy.pt", weights_only=True)
     assert json.loads(data["config_json"])["stages"][0]["from_env_steps"] == 96
     again = TrainingRun(tmp_path / "run", resume=True)
-    assert again.env.reward.config.weights["joint_velocity"] == PAPER_WEIGHTS["joint_velocity"]
+    assert again.env.core.reward.config.weights["joint_velocity"] == PAPER_WEIGHTS["joint_velocity"]
     with pytest.raises(FrbenchError, match="expected a scale >= 0"):
         reward_weight_changes(-1.0, [])
     with pytest.raises(FrbenchError, match="expected TERM=WEIGHT, e.g. action_smoothing=-0.1"):
@@ -162,22 +162,22 @@ def test_an_action_held_for_several_control_steps_is_one_decision_in_training_an
     env = RecoveryTrainingEnv(cfg)
     assert env.max_episode_length == 3
     seen, rewards = [], []
-    original = env._control_step
+    original = env.core._control_step
 
     def counted(*args):
         seen.append(env.step_count)
         rewards.append(original(*args))
         return rewards[-1]
 
-    env._control_step = counted
+    env.core._control_step = counted
     action = torch.full((2, 12), 0.3)
     for steps, done in ((3, False), (6, False), (7, True)):
         first = len(rewards)
         _, reward, dones, _ = env.step(action)
-        assert len(seen) == steps and bool(dones.all()) == done and np.allclose(env.actions.current, 0.0 if done else 0.3)
+        assert len(seen) == steps and bool(dones.all()) == done and np.allclose(env.core.actions.current, 0.0 if done else 0.3)
         np.testing.assert_allclose(reward.numpy(), sum(r for r, _, _ in rewards[first:]), rtol=1e-6)
         if not done:  # the next decision's a_{t-2} is this held action, not the one before it
-            assert np.allclose(env.actions.previous, 0.3)
+            assert np.allclose(env.core.actions.previous, 0.3)
     assert seen == list(range(7)) and env.step_count == 0  # a new episode after the seventh step
     assert env.episode_length_buf.tolist() == [0, 0]
     with pytest.raises(ValueError, match="action_hold 0: expected at least 1"):
@@ -227,7 +227,7 @@ def test_a_humanoid_residual_policy_trains_and_adds_its_action_to_the_base_contr
     assert obs["policy"].shape == (2, 6 + 3 * 29) and obs["history"].shape == (2, 5 * (6 + 3 * 29))
     run.train(progress_bar=False)
     assert run.env_steps == 48
-    logged = run.env.reward.config.weights
+    logged = run.env.core.reward.config.weights
     assert {"head_height", "feet_on_ground", "upper_body_posture", "action_jerk"} <= set(logged)
     assert "feet_contact" not in logged
     assert 1.1 < run.env.robots.head.standing_height < 1.35  # the G1's head centre stands about 1.23 m high
@@ -269,7 +269,7 @@ def test_a_residual_policy_keeps_the_base_controller_parameters_it_was_trained_w
                          base_controller="keyframe-humanoid", base_controller_parameters=trained_with,
                          action_scale=0.1)
     run = TrainingRun(tmp_path / "g1", "ppo", cfg, total_steps=2 * 24, checkpoint_every=1)
-    assert run.env.targets_of.controller.parameter_dict()["stand.knee"] == 0.9
+    assert run.env.core.transform.controller.parameter_dict()["stand.knee"] == 0.9
     run.train(progress_bar=False)
     policy = load_policy(str(tmp_path / "g1"))
     assert isinstance(policy.base_controller, KeyframeHumanoidPolicy)
@@ -375,7 +375,7 @@ def test_the_assist_force_lifts_with_a_fraction_of_the_weight_and_fades_out():
     for _ in range(3):
         env.step(torch.zeros(2, env.num_actions))
     np.testing.assert_allclose(env.backend._base_force, 0.0)
-    assert env.assist.fraction == 0.0
+    assert env.core.assist.fraction == 0.0
 
 
 @pytest.mark.parametrize("backend", ["mujoco", "pybullet"])
@@ -520,11 +520,11 @@ def test_rise_starts_begin_where_the_gate_opened_with_the_controller_in_its_rise
                          action_scale=0.1)
     env = RecoveryTrainingEnv(cfg)
     assert len(env.rise.bank) == 3  # each environment once, at the step its gate first opened
-    assert env.from_demo.all() and (env.targets_of.controller.phase == CROUCH).all()
+    assert env.from_demo.all() and (env.core.transform.controller.phase == CROUCH).all()
     recorded_q = np.concatenate([row[0].q for row in env.rise.bank])
-    assert {tuple(np.round(q, 9)) for q in env.task.state.q} <= {tuple(np.round(q, 9)) for q in recorded_q}
-    starts = {tuple(np.round(env.targets_of.controller._clip(row[2]), 9)) for row in env.rise.bank}
-    assert {tuple(np.round(s, 9)) for s in env.targets_of.controller.start} <= starts  # the ramp starts at recorded targets
+    assert {tuple(np.round(q, 9)) for q in env.core.state.q} <= {tuple(np.round(q, 9)) for q in recorded_q}
+    starts = {tuple(np.round(env.core.transform.controller._clip(row[2]), 9)) for row in env.rise.bank}
+    assert {tuple(np.round(s, 9)) for s in env.core.transform.controller.start} <= starts  # the ramp starts at recorded targets
     for _ in range(3):
         env.step(torch.zeros(3, 29))
     assert env.last_episode_stats["demo_start_share"] == 1.0 and "success_demo_starts" in env.last_episode_stats

@@ -25,13 +25,15 @@ class AssistForce:
         self.mass = np.asarray(masses).sum(axis=1)
         self.fraction = 0.0
 
-    def clear(self, task) -> None:
-        """No force on ``task``'s robots (before a start is settled)."""
-        task.set_base_force(np.zeros((task.num_envs, 3)))
+    def clear(self, env) -> None:
+        """No force on the robots of ``env`` (the core env, `frbench.tasks.core_env.CoreEnv`; before a start is
+        settled)."""
+        env.set_base_force(np.zeros((env.num_envs, 3)))
 
-    def apply(self, task, env_steps: int) -> None:
-        """The episode's force on ``task``'s robots, upwards [N], for a run at ``env_steps`` env steps."""
+    def apply(self, env, env_steps: int) -> None:
+        """The episode's force on the robots of ``env`` (the core env), upwards [N], for a run at ``env_steps`` env
+        steps."""
         self.fraction = assist_probability(self.initial, self.until, env_steps)
-        force = np.zeros((task.num_envs, 3))
+        force = np.zeros((env.num_envs, 3))
         force[:, 2] = self.fraction * self.mass * GRAVITY
-        task.set_base_force(force)
+        env.set_base_force(force)

@@ -58,13 +58,14 @@ class DemoStartBank:
         return RobotState(**picked), self.targets[times, ids], self.tile_row[ids]
 
 
-def record_demo_starts(task, specs, assignment: np.ndarray, tile_row: np.ndarray, steps: int,
+def record_demo_starts(env, specs, assignment: np.ndarray, tile_row: np.ndarray, steps: int,
                        stride: int) -> DemoStartBank:
-    """Run ``scripted`` (``scripted-humanoid`` for humanoids) on every environment of ``task`` from its current state for ``steps`` control steps.
+    """Run ``scripted`` (``scripted-humanoid`` for humanoids) on every environment of ``env`` from its current
+    state for ``steps`` control steps.
 
     Args:
-        task: the episode engine (`frbench.tasks.recovery.RecoveryTask`) whose N environments hold fresh fallen
-            starts; driven with `RecoveryTask.drive` (physics only, no episode step).
+        env: the core environment (`frbench.tasks.core_env.CoreEnv`) whose N environments hold fresh fallen
+            starts; driven with `CoreEnv.drive` (physics only, no episode step).
         specs: the robot specs; environment i is robot ``specs[assignment[i]]``.
         assignment: (N,) index into ``specs`` per environment.
         tile_row: (N,) the tile each environment lies on (kept with the snapshots).
@@ -81,18 +82,18 @@ def record_demo_starts(task, specs, assignment: np.ndarray, tile_row: np.ndarray
     n, n_joints = len(assignment), specs[0].n_joints
     states, targets = [], []
     target = np.zeros((n, n_joints))
-    state = task.state
+    state = env.state
     for step in range(steps):
         gravity = projected_gravity(state.base_quat)
         for controller, ids in zip(controllers, groups):
             if len(ids):
                 target[ids] = controller.act({"projected_gravity": gravity[ids], "joint_pos": state.q[ids]})
-        state = task.drive(target)
+        state = env.drive(target)
         if step % stride == stride - 1:
             states.append(state.copy())
             targets.append(target.copy())
     return DemoStartBank(states=states, targets=np.stack(targets), tile_row=np.asarray(tile_row).copy(),
-                         valid=~np.asarray(task.physics_diverged, dtype=bool).copy())
+                         valid=~np.asarray(env.physics_diverged, dtype=bool).copy())
 
 
 def assist_probability(initial: float, until_steps: float, env_steps: float) -> float:

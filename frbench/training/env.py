@@ -1,12 +1,17 @@
 """The training environment: rsl-rl's `VecEnv` over frbench's episode engine.
 
-`RecoveryTrainingEnv` is an adapter: the episode (settle, step, signals,
-success) is `frbench.tasks.recovery.RecoveryTask`'s, the one ``frbench
-evaluate`` runs; this module adds what training needs around it, each from its
-own module: the batch's robots and their randomised physics (`population`),
-the world of terrain tiles and its curriculum, the rewards (`rewards`), the
-action → targets rule (`residual`), held actions (`action_hold`), demo and
-rise starts (`start_sources`) and the assist force (`assist`).
+`RecoveryTrainingEnv` is a shell over the core environment
+(`frbench.tasks.core_env.CoreEnv`, which the Gymnasium envs share): the core env
+owns the simulator and the episode engine (`frbench.tasks.recovery.RecoveryTask`,
+the one ``frbench evaluate`` runs) and steps it (action transform, held action,
+the reward `step_reward.StepReward`, the assist force, the fallen starts). This
+module composes the pieces training passes in — the batch's robots and their
+randomised physics (`population`), the action → targets rule (`residual`), held
+actions (`action_hold`), the reward, the assist force (`assist`) — and keeps what
+only training has: the world of terrain tiles and its curriculum, which tile each
+episode starts on, demo and rise starts (`start_sources`, through the core env's
+``drive`` and ``restart``), the observation history and groups, episode
+statistics, and torch tensors.
 
 N fallen robots on a world of all terrain tiles (`terrain_grid`), each on the
 tile its curriculum level says, with randomised morphologies (or one named
@@ -39,10 +44,7 @@ import torch
 from rsl_rl.env import VecEnv
 from tensordict import TensorDict
 
-from frbench.backends import make_backend, simulator_parts
-from frbench.tasks.initial_states import FallenStarts, draw_start
-from frbench.tasks.observations import flatten
-from frbench.tasks.recovery import RecoveryTask
+from frbench.tasks.core_env import CoreEnv
 from frbench.training.action_hold import HeldAction
 from frbench.training.assist import AssistForce
 from frbench.training.config import TrainEnvConfig
@@ -73,31 +75,43 @@ class RecoveryTrainingEnv(VecEnv):
         self.spec = self.robots.spec
         self.num_actions = self.spec.n_joints
         self.default_pose = np.asarray(self.spec.default_pose)
-        self.targets_of = (ResidualController(cfg.base_controller, cfg.base_controller_parameters, self.spec,
-                                              cfg.action_scale, cfg.residual_gate, cfg.gate_phases)
-                           if cfg.base_controller else DirectTargets(self.default_pose, cfg.action_scale))
-        self.actions = HeldAction(cfg.action_hold)
-        self.max_episode_length = self.actions.decisions_per_episode(cfg.episode_steps)
+        targets_of = (ResidualController(cfg.base_controller, cfg.base_controller_parameters, self.spec,
+                                         cfg.action_scale, cfg.residual_gate, cfg.gate_phases)
+                      if cfg.base_controller else DirectTargets(self.default_pose, cfg.action_scale))
+        actions = HeldAction(cfg.action_hold)
+        self.max_episode_length = actions.decisions_per_episode(cfg.episode_steps)
         self.episode_length_buf = torch.zeros(n, dtype=torch.long)
         self.curriculum = TerrainCurriculum(n, self.rng, families=cfg.families, start_level=cfg.start_level)
         if not cfg.curriculum:
             self.curriculum.level[:] = self.rng.integers(1, 11, size=n)
         self.raster = HeightRaster(self.grid, sorted(self.grid.tiles))
-        backend = make_backend(cfg.backend, self.spec, n, terrain=self.grid.world, variants=self.robots.variants)
-        self.task = RecoveryTask(self.spec, backend, self.grid.world, n, ground_height=self._ground_height,
-                                 nominal_height=self.robots.nominal_height, track_metrics=False,
-                                 surface_rules=False)
-        self.backend = backend
-        self.reward = StepReward(cfg.reward, self.spec, self.robots.nominal_height, self._ground_height,
-                                 self.robots.head)
-        self.assist = AssistForce(cfg.assist_force, cfg.assist_until, self.robots.env_masses)
+        reward = StepReward(cfg.reward, self.spec, self.robots.nominal_height, self._ground_height, self.robots.head)
+        assist = AssistForce(cfg.assist_force, cfg.assist_until, self.robots.env_masses)
+        self.core = CoreEnv(self.spec, cfg.backend, self.grid.world, n, transform=targets_of, hold=actions,
+                            reward=reward, assist=assist, episode_steps=cfg.episode_steps,
+                            variants=self.robots.variants, ground_height=self._ground_height,
+                            nominal_height=self.robots.nominal_height, track_metrics=False, surface_rules=False)
         self.demo = DemoStarts(cfg.demo_start_fraction, cfg.demo_start_until, cfg.demo_refresh_episodes,
                                cfg.demo_steps, cfg.demo_stride)
         self.rise = RiseStarts(cfg.rise_start_fraction, cfg.demo_refresh_episodes) if cfg.rise_start_fraction else None
         self.last_episode_stats: dict[str, float] = {}
-        self.env_steps = 0  # env steps taken so far (N per control step); the run restores it on --resume
         self.from_demo = np.zeros(n, dtype=bool)
         self._reset_all()
+
+    # ------------------------------------------------------------------ the core env's parts, for callers
+    @property
+    def env_steps(self) -> int:
+        """Env steps taken so far (N per control step); the run restores it on --resume."""
+        return self.core.env_steps
+
+    @env_steps.setter
+    def env_steps(self, steps: int) -> None:
+        self.core.env_steps = steps
+
+    @property
+    def backend(self):
+        """The core env's simulator (read-only: benchmarks time its raw step)."""
+        return self.core.backend
 
     # ------------------------------------------------------------------ the batch's robots, for callers
     @property
@@ -119,12 +133,12 @@ class RecoveryTrainingEnv(VecEnv):
     @property
     def params(self):
         """The current episode's `PhysicsParams`."""
-        return self.task.params
+        return self.core.params
 
     @property
     def step_count(self) -> int:
         """Control steps taken in the current episode."""
-        return self.task.t
+        return self.core.t
 
     def _ground_height(self, xy: np.ndarray) -> np.ndarray:
         """Terrain height [m] (N,) under world points ``xy`` (N, 2) on each environment's tile."""
@@ -137,11 +151,11 @@ class RecoveryTrainingEnv(VecEnv):
         fraction = self.demo.fraction(self.env_steps)
         if self.demo.needs_recording(fraction):
             self._fresh_starts()
-            self.demo.record(self.task, self.specs, self.assignment, self.tile_row)
+            self.demo.record(self.core, self.specs, self.assignment, self.tile_row)
         if self.rise is not None:
             if self.rise.needs_recording():
                 self._fresh_starts()
-                self.rise.record(self.task, self.targets_of.fresh_copy(), self.spec, self.default_pose,
+                self.rise.record(self.core, self.core.transform.fresh_copy(), self.spec, self.default_pose,
                                  self.tile_row)
             self.rise.count_episode()
         self._fresh_starts()
@@ -152,57 +166,44 @@ class RecoveryTrainingEnv(VecEnv):
             state, targets, tiles = self.demo.sample(ids, self.rng)
             self._restart_from(ids, state, tiles)
             action[ids] = (targets - self.default_pose) / cfg.action_scale
-        self.actions.begin(action)  # a_{t-1} = a_t: both zero at a fresh start
-        self.targets_of.reset(self.spec, n)
+        self.core.begin(action)  # a_{t-1} = a_t: both zero at a fresh start; the transform reset
         if self.rise is not None:
             drawn = self.rise.draw(self.rng, self.from_demo)
             if drawn is not None:
                 ids, state, tiles, targets, paths = drawn
                 self._restart_from(ids, state, tiles)
                 self.from_demo[ids] = True
-                self.targets_of.enter_gate(ids, targets, self.task.state.q, paths)
-        o_t = self._o_t()
+                self.core.transform.enter_gate(ids, targets, self.core.state.q, paths)
+        o_t = self.core.policy_observation()
         self.history = np.repeat(o_t[:, None, :], cfg.history, axis=1)
         self.long_history = np.repeat(o_t[:, None, :], cfg.long_history, axis=1) if cfg.long_history else None
 
     def _restart_from(self, ids: np.ndarray, state, tiles) -> None:
         """Start environments ``ids`` from recorded ``state`` (len(ids) rows) on their recorded ``tiles``."""
-        self.task.restart(ids, state)
+        self.core.restart(ids, state)
         self.tile_row[ids] = tiles
 
     def _fresh_starts(self) -> None:
         """Fallen starts on every environment's curriculum tile, settled for ``settle_steps`` by the engine."""
-        n = self.num_envs
         tiles = list(zip(self.curriculum.family.tolist(), self.curriculum.level.tolist()))
         self.tile_row = np.array([self.raster.index[t] for t in tiles])
-        pos, quat, q = np.zeros((n, 3)), np.zeros((n, 4)), np.zeros((n, self.spec.n_joints))
-        kinds = []
-        for i, tile in enumerate(tiles):
-            p, o, j, kind = draw_start(self.specs[self.assignment[i]], self.grid.tiles[tile], self.rng)
-            dx, dy = self.grid.offsets[tile]
-            pos[i], quat[i], q[i] = p + (dx, dy, 0.0), o, j
-            kinds.append(kind)
-        params = self.robots.episode_params()
-        self.assist.clear(self.task)
-        self.task.reset(FallenStarts(pos, quat, q, kinds), params, self.cfg_obj.settle_steps)
-        self.assist.apply(self.task, self.env_steps)
+        starts = self.core.draw_fallen(self.rng, [self.grid.tiles[t] for t in tiles],
+                                       [self.grid.offsets[t] for t in tiles], [self.specs[k] for k in self.assignment])
+        self.core.reset(starts, self.robots.episode_params(), self.cfg_obj.settle_steps)
         self.episode_length_buf.zero_()
 
     # ------------------------------------------------------------------ observations
-    def _o_t(self) -> np.ndarray:
-        o_t = flatten(self.task.observation(), self.default_pose)
-        o_t[:, -self.spec.n_joints:] = self.actions.current  # the previous action in policy units
-        return o_t
-
     def _observations(self, o_t: np.ndarray) -> TensorDict:
-        s = self.task.state
+        core = self.core
+        s = core.state
         scan = self.raster.scan(self.tile_row, s.base_pos, yaw_of(s.base_quat))
-        return observation_groups(o_t, self.history, self.long_history, s, self.task.contacts, self.task.params,
-                                  self.robots.env_masses, self.robots.com_xy(s, self.task.whole_body_com()), scan, self.task.physics_diverged)
+        return observation_groups(o_t, self.history, self.long_history, s, core.contacts, core.params,
+                                  self.robots.env_masses, self.robots.com_xy(s, core.whole_body_com()), scan,
+                                  core.physics_diverged)
 
     def get_observations(self) -> TensorDict:
         """The current observation groups."""
-        return self._observations(self._o_t())
+        return self._observations(self.core.policy_observation())
 
     # ------------------------------------------------------------------ stepping
     def step(self, actions: torch.Tensor):
@@ -210,21 +211,17 @@ class RecoveryTrainingEnv(VecEnv):
         `TrainEnvConfig.action_hold` control steps (fewer if the episode ends first), their rewards summed."""
         n, cfg = self.num_envs, self.cfg_obj
         action = np.clip(actions.detach().cpu().numpy().astype(np.float64), -10.0, 10.0)
-        reward, term_sums = np.zeros(n), {}
-        for action_prev, action_prev2 in self.actions.decide(action, cfg.episode_steps - self.task.t):
-            step_reward, terms, alive = self._control_step(action_prev, action_prev2)
-            reward += step_reward
-            term_sums = {k: term_sums.get(k, 0.0) + v for k, v in terms.items()}
-        held = self.actions.held
+        reward, term_sums, alive = self.core.step(action)
+        held = self.core.actions.held
         self.episode_length_buf += 1
-        o_t = self._o_t()
+        o_t = self.core.policy_observation()
         self.history = np.concatenate([self.history[:, 1:], o_t[:, None, :]], axis=1)
         if self.long_history is not None:
             self.long_history = np.concatenate([self.long_history[:, 1:], o_t[:, None, :]], axis=1)
         log = {f"/reward/{k}": _alive_mean(v, alive) / held for k, v in term_sums.items()}
-        done = self.task.t >= cfg.episode_steps
+        done = self.core.done
         if done:
-            success = self.task.success.success.copy()
+            success = self.core.success.success.copy()
             self.last_episode_stats = self._episode_stats(success, alive)
             log.update({f"/episode/{k}": v for k, v in self.last_episode_stats.items()})
             if cfg.curriculum:  # the curriculum judges fallen starts only
@@ -232,22 +229,11 @@ class RecoveryTrainingEnv(VecEnv):
                 self.curriculum.update(fallen, success[fallen])
             log.update({f"/curriculum/{k}": float(v) for k, v in self.curriculum.stats().items()})
             self._reset_all()
-            o_t = self._o_t()
+            o_t = self.core.policy_observation()
         obs = self._observations(o_t)
         dones = torch.full((n,), bool(done))
         extras = {"time_outs": torch.full((n,), bool(done)), "log": log}
         return obs, torch.as_tensor(reward, dtype=torch.float32), dones, extras
-
-    def _control_step(self, action_prev: np.ndarray, action_prev2: np.ndarray):
-        """One control step with the current action: targets, the engine's step, rewards (N,) and terms
-        (name → (N,)); returns (reward, terms, alive (N,) bool)."""
-        task, action = self.task, self.actions.current
-        targets = self.targets_of.targets(task.state, action)
-        qd_prev = task.state.qd
-        task.advance(targets)
-        reward, terms, alive = self.reward(task, action, action_prev, action_prev2, qd_prev)
-        self.env_steps += self.num_envs
-        return reward, terms, alive
 
     def _episode_stats(self, success: np.ndarray, alive: np.ndarray) -> dict[str, float]:
         """Success rate of the episodes from fallen starts, overall, per family (all levels) and, on a split
@@ -257,7 +243,7 @@ class RecoveryTrainingEnv(VecEnv):
         stats = {"success_all": float(success[fallen].mean()) if fallen.any() else 0.0,
                  "diverged": float((~alive).mean()), "mean_level": float(self.curriculum.level.mean())}
         if self.cfg_obj.assist_force > 0.0:
-            stats["assist_fraction"] = float(self.assist.fraction)
+            stats["assist_fraction"] = float(self.core.assist.fraction)
         if self.from_demo.any():
             stats["demo_start_share"] = float(self.from_demo.mean())
             stats["success_demo_starts"] = float(success[self.from_demo].mean())
@@ -265,7 +251,7 @@ class RecoveryTrainingEnv(VecEnv):
             mine = (self.curriculum.family == f) & fallen
             if mine.any():
                 stats[f"success_{family}"] = float(success[mine].mean())
-        parts = simulator_parts(self.backend)
+        parts = self.core.simulator_parts()
         for simulator, rows in parts if len(parts) > 1 else ():
             mine = np.zeros_like(fallen)
             mine[rows] = fallen[rows]
@@ -274,8 +260,8 @@ class RecoveryTrainingEnv(VecEnv):
         return stats
 
     def close(self) -> None:
-        """Free the simulator."""
-        self.backend.close()
+        """Free the simulator (the core env's)."""
+        self.core.close()
 
 
 def _alive_mean(values: np.ndarray, alive: np.ndarray) -> float:

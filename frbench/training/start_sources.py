@@ -12,7 +12,9 @@ some of them by recorded states:
   back in that phase, so that every such episode exercises the rise.
 
 Both re-record their bank every ``refresh_episodes`` episodes, on the training
-batch itself. Every random draw comes from the generator passed in; a source
+batch itself, through the core environment's API (`frbench.tasks.core_env.CoreEnv`:
+``state``, ``drive`` — physics only, no episode step — and ``physics_diverged``);
+the training env then puts the drawn episodes on their states with ``restart``. Every random draw comes from the generator passed in; a source
 draws its Bernoulli mask at every reset, even when its fraction is 0, so the
 generator's stream does not depend on the schedule.
 """
@@ -49,9 +51,9 @@ class DemoStarts:
         """Whether the bank must be (re-)recorded before this reset."""
         return fraction > 0.0 and (self.bank is None or self.episodes_since >= self.refresh_episodes)
 
-    def record(self, task, specs, assignment: np.ndarray, tile_row: np.ndarray) -> None:
-        """Record the bank from the fresh starts ``task`` holds now (see `record_demo_starts`)."""
-        self.bank = record_demo_starts(task, specs, assignment, tile_row, self.steps, self.stride)
+    def record(self, env, specs, assignment: np.ndarray, tile_row: np.ndarray) -> None:
+        """Record the bank from the fresh starts the core env ``env`` holds now (see `record_demo_starts`)."""
+        self.bank = record_demo_starts(env, specs, assignment, tile_row, self.steps, self.stride)
         self.episodes_since = 0
 
     def draw(self, rng: np.random.Generator, num_envs: int, fraction: float) -> np.ndarray:
@@ -83,18 +85,18 @@ class RiseStarts:
         """One more episode since the bank was recorded."""
         self.episodes_since += 1
 
-    def record(self, task, controller, spec, default_pose: np.ndarray, tile_row: np.ndarray) -> None:
-        """Run ``controller`` (a fresh base controller) on the fresh starts ``task`` holds for one evaluation
+    def record(self, env, controller, spec, default_pose: np.ndarray, tile_row: np.ndarray) -> None:
+        """Run ``controller`` (a fresh base controller) on the fresh starts the core env ``env`` holds for one evaluation
         episode (`EPISODE_STEPS`, whatever the training episode length: the gate openings an evaluation can see);
         keep the state (one row), tile, controller targets (J,) [rad] and way to the crouch (``gate_paths``) of
         every environment at the step its default gate (the crouch) first opened."""
-        n = task.num_envs
+        n = env.num_envs
         controller.reset(spec, n)
         bank, opened = [], np.zeros(n, dtype=bool)
-        state = task.state
+        state = env.state
         for _ in range(EPISODE_STEPS):
-            state = task.drive(np.asarray(controller.act(proprioception(state, default_pose))))
-            new = (controller.residual_gate() > 0) & ~opened & ~task.physics_diverged
+            state = env.drive(np.asarray(controller.act(proprioception(state, default_pose))))
+            new = (controller.residual_gate() > 0) & ~opened & ~env.physics_diverged
             paths = controller.gate_paths()
             bank += [(state.take([i]), int(tile_row[i]), controller.target[i].copy(), int(paths[i]))
                      for i in np.flatnonzero(new)]
