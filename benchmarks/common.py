@@ -7,7 +7,7 @@ import time
 import numpy as np
 
 from frbench.backends.base import RobotState
-from frbench.robots.check import random_configurations
+from frbench.robot_checks.check import random_configurations
 
 
 def timed(step, seconds: float) -> float:

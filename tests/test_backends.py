@@ -10,7 +10,7 @@ import pytest
 from frbench.backends import make_backend
 from frbench.backends.base import PhysicsParams, RobotState
 from frbench.robots import get_robot, ground_truth
-from frbench.robots.check import check_robot, random_configurations, stand_test
+from frbench.robot_checks.check import check_robot, random_configurations, stand_test
 
 BUILTIN = ("go2", "go1", "aliengo", "spot_like", "lite3_like", "g1")
 BACKENDS = ("mujoco", "pybullet")

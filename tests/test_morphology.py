@@ -323,7 +323,7 @@ def test_inconsistent_limits_and_inertias_raise():
 
 def test_a_trunk_com_shift_moves_the_com_alike_in_pinocchio_mujoco_and_pybullet(tmp_path):
     from frbench.robots import ground_truth
-    from frbench.robots.check import check_robot
+    from frbench.robot_checks.check import check_robot
 
     shift = (0.04, -0.03, 0.02)
     plain = morph_urdf.cached_spec(MorphologyParams(), "plain", tmp_path / "plain.urdf")

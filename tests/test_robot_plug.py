@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from frbench.cli import main
-from frbench.robots import get_robot, ground_truth
-from frbench.robots.check import check_robot
+from frbench.robot_checks.check import check_robot
+from frbench.robot_checks.lookup import get_robot, with_measured_height
+from frbench.robots import ground_truth
 from frbench.robots.gains import B_MAX, SAG, derive_gains
 from frbench.robots.infer import provisional_spec, spec_from_path
 from frbench.robots.paths import example_robot_data, pybullet_data_file
@@ -26,8 +27,8 @@ def test_derived_gains_hold_the_static_torque_within_the_sag():
 
 
 def test_gains_scale_with_the_robot():
-    light = spec_from_path(example_robot_data("solo_description/robots/solo12.urdf"), measure=False)
-    heavy = spec_from_path(example_robot_data("anymal_c_simple_description/urdf/anymal.urdf"), measure=False)
+    light = spec_from_path(example_robot_data("solo_description/robots/solo12.urdf"))
+    heavy = spec_from_path(example_robot_data("anymal_c_simple_description/urdf/anymal.urdf"))
     assert ground_truth.total_mass(light) == pytest.approx(2.5, abs=0.01)
     assert ground_truth.total_mass(heavy) == pytest.approx(52.13, abs=0.01)
     assert max(heavy.kp) > 20 * max(light.kp)
@@ -49,14 +50,14 @@ def test_leg_reach_lifts_the_thigh_floor_and_caps_the_effort():
     assert spec.torque_limits[:3] == pytest.approx((23.7, 23.7, 45.43))
     assert d.effort[:3] == pytest.approx((20.57,) * 3, abs=0.01) and d.as_dict()["effort"] == list(d.effort)
     # Solo12's file says 1000 N·m for a 2.5 kg robot: 2.08 N·m; a sidecar's effort is taken as given
-    solo = spec_from_path(example_robot_data("solo_description/robots/solo12.urdf"), measure=False)
+    solo = spec_from_path(example_robot_data("solo_description/robots/solo12.urdf"))
     assert solo.torque_limits == pytest.approx((2.076,) * 12, abs=1e-3)
 
 
 def test_a_sidecar_effort_is_not_capped(tmp_path):
     sidecar = tmp_path / "solo12.frbench.toml"
     sidecar.write_text("effort = 3.0\n")
-    spec = spec_from_path(example_robot_data("solo_description/robots/solo12.urdf"), sidecar, measure=False)
+    spec = spec_from_path(example_robot_data("solo_description/robots/solo12.urdf"), sidecar)
     assert spec.torque_limits == (3.0,) * 12
 
 
@@ -125,7 +126,7 @@ def test_g1_by_path_gets_its_step_from_the_derivation_and_sways_within_its_feet(
     from frbench.robots.gains import A_MAX
     from frbench.robots.humanoid_gains import SWAY_FRACTION
 
-    spec = spec_from_path(example_robot_data("g1_description/urdf/g1_29dof_rev_1_0.urdf"), measure=False)
+    spec = spec_from_path(example_robot_data("g1_description/urdf/g1_29dof_rev_1_0.urdf"))
     d = _derivation(spec)
     # no per-joint balance floor: the ankle rolls were 217 N·m/rad on 0.4 g·m² of foot, which forced 1 ms
     assert spec.physics_dt == d["physics_dt"] == 0.0025 and d["mode_b"] <= B_MAX and d["mode_a"] <= A_MAX * 1.001
@@ -201,7 +202,7 @@ def test_bolt_with_soles_and_a_straight_pose_stands(tmp_path):
     (tmp_path / "bolt_soles.frbench.toml").write_text(
         "[default_pose]\nFL_HFE = 0.0\nFL_KFE = 0.0\nFR_HFE = 0.0\nFR_KFE = 0.0\n"
     )
-    report = check_robot(spec_from_path(path), n_random=1)
+    report = check_robot(with_measured_height(spec_from_path(path)), n_random=1)
     assert report.ok, report.problems
     for name in ("mujoco", "pybullet"):
         assert report.standing[name]["height"] > 0.9 * report.kinematic_height

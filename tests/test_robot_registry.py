@@ -138,7 +138,7 @@ def test_sim_urdf_file_pruned_by_another_process_is_made_again():
 
 
 def test_evaluation_records_the_check_of_a_robot_given_by_path(tmp_path, quadruped_urdf_text):
-    from frbench.robots.check import checks_for_evaluation
+    from frbench.robot_checks.check import checks_for_evaluation
     from frbench.robots.sidecar import PHYSICS_STEPS
 
     path = _urdf(tmp_path, quadruped_urdf_text, "limp")

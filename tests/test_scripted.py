@@ -196,7 +196,7 @@ def _by_path(source: str, relative: str):
     from frbench.robots.infer import spec_from_path
     from frbench.robots.paths import example_robot_data, pybullet_data_file
 
-    return spec_from_path((pybullet_data_file if source == "pb" else example_robot_data)(relative), measure=False)
+    return spec_from_path((pybullet_data_file if source == "pb" else example_robot_data)(relative))
 
 
 def test_canonical_frame_reads_the_joint_zeros_from_the_kinematics():

@@ -4,7 +4,7 @@ For each file: kind, mass, derived Kp/Kd (first leg's joints), physics step,
 measured standing heights (MuJoCo / PyBullet), check result and time; for
 humanoids the whole left leg's gains (pelvis to foot), the kinematic height and
 the support margin (the tilt that carries the CoM to the edge of the feet,
-`frbench.robots.check.static_support`). Runs the checks one after the other in
+`frbench.robot_checks.check.static_support`). Runs the checks one after the other in
 this process (each with a cold cache, so the time includes the gain derivation
 and the height measurement).
 
@@ -77,13 +77,14 @@ def check_one(entry: str, sidecar: str | None = None) -> dict:
     """One row: the check of ``entry`` (with ``sidecar`` if given), or the refusal."""
     from frbench.errors import FrbenchError
     from frbench.robots import ground_truth
-    from frbench.robots.check import check_robot
+    from frbench.robot_checks.check import check_robot
+    from frbench.robot_checks.lookup import with_measured_height
     from frbench.robots.infer import spec_from_path
 
     row = {"file": entry}
     started = time.perf_counter()
     try:
-        spec = spec_from_path(resolve(entry), sidecar)
+        spec = with_measured_height(spec_from_path(resolve(entry), sidecar))
         report = check_robot(spec)
     except FrbenchError as exc:
         row.update(result="refused", message=str(exc).replace(resolve(entry), entry), seconds=time.perf_counter() - started)

@@ -65,7 +65,7 @@ def standing_analysis(policy_reference: str, robot: str, backends=("mujoco", "py
     """Per backend, the `StandingTally` summary of ``episodes`` × ``seeds`` episodes of one cell."""
     from frbench.evaluation.episodes import run_episodes
     from frbench.policies.registry import load_policy
-    from frbench.robots import get_robot
+    from frbench.robot_checks.lookup import get_robot
     from frbench.tasks.initial_states import draw_starts
     from frbench.terrains import make_terrain
 

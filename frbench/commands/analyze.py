@@ -167,7 +167,7 @@ def run(args) -> int:
 
     from frbench.analysis.mcp_quality import evaluate_mcp, write_report
     from frbench.io import check_output_path
-    from frbench.robots import get_robot
+    from frbench.robot_checks.lookup import get_robot
     from frbench.training.randomization import morphology_specs, sample_morphologies
 
     check_output_path(args.out, folder=True)

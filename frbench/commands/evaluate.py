@@ -73,7 +73,7 @@ def run(args) -> int:
     out = args.out or Path("results") / f"{Path(args.policy).stem or 'policy'}.json"
     check_output_path(out)
     policy = validate(request)
-    from frbench.robots.check import checks_for_evaluation
+    from frbench.robot_checks.check import checks_for_evaluation
 
     robot_checks = checks_for_evaluation(request.robots)
     for name, check in robot_checks.items():

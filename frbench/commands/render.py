@@ -72,7 +72,7 @@ def record_episode(policy, args):
     from frbench.backends.base import CONTROL_DT
     from frbench.evaluation.episodes import run_episodes
     from frbench.render import Trajectory
-    from frbench.robots import get_robot
+    from frbench.robot_checks.lookup import get_robot
     from frbench.tasks.initial_states import draw_starts
     from frbench.terrains import make_terrain
 

@@ -32,7 +32,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 def robot_rows() -> list[dict]:
     """One row per registered robot: name, kind, dof, total mass [kg], source; unavailable ones with the reason."""
     from frbench.errors import FrbenchError
-    from frbench.robots import get_robot, ground_truth, robot_names
+    from frbench.robot_checks.lookup import get_robot
+    from frbench.robots import ground_truth, robot_names
     from frbench.robots.registry import unavailable_robots
 
     rows = []
@@ -77,8 +78,8 @@ def run_list(args) -> int:
 
 def run_check(args) -> int:
     """Run the conformance check; exit 1 when it fails."""
-    from frbench.robots import get_robot
-    from frbench.robots.check import check_robot
+    from frbench.robot_checks.check import check_robot
+    from frbench.robot_checks.lookup import get_robot
 
     report = check_robot(get_robot(args.robot), seed=args.seed)
     if args.json:
@@ -121,12 +122,13 @@ def _row(values, n: int = 12) -> str:
 
 def run_add(args) -> int:
     """Register a user URDF after its conformance check (exit 1 when the check fails and no --force)."""
+    from frbench.robot_checks.check import check_robot
+    from frbench.robot_checks.lookup import with_measured_height
     from frbench.robots import add_user_robot
-    from frbench.robots.check import check_robot
     from frbench.robots.registry import user_robots_file
 
     def check(spec):
-        report = check_robot(spec)
+        report = check_robot(with_measured_height(spec))
         return report.ok, report.problems
 
     spec = add_user_robot(args.urdf, args.name, force=args.force, check=check)

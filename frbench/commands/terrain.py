@@ -39,7 +39,7 @@ def run_show(args) -> int:
     from frbench.errors import FrbenchError
     from frbench.io import check_output_path
     from frbench.render import SceneRenderer, write_png
-    from frbench.robots import get_robot
+    from frbench.robot_checks.lookup import get_robot
     from frbench.tasks.initial_states import draw_starts
     from frbench.tasks.recovery import RecoveryTask, open_backend
     from frbench.terrains import FAMILIES, make_terrain

@@ -54,7 +54,7 @@ def _one_torch_thread() -> None:
 
 def run_cell(cell: Cell, policy_reference: str, noise: bool = False) -> list[dict]:
     """Run the cell's episodes with the policy (`run_episodes`); one record per episode."""
-    from frbench.robots import get_robot
+    from frbench.robot_checks.lookup import get_robot
     from frbench.tasks.initial_states import draw_starts
     from frbench.terrains import make_terrain
 

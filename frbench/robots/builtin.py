@@ -17,7 +17,9 @@ from __future__ import annotations
 
 from typing import Callable
 
+from frbench.robots import morphology_presets
 from frbench.robots.builder import spec_from_urdf
+from frbench.robots.morphology_urdf import cached_spec
 from frbench.robots.paths import cache_dir, example_robot_data, pybullet_data_file
 from frbench.robots.spec import QUADRUPED_LEGS, LinkGroup, RobotSpec, quadruped_groups
 
@@ -193,9 +195,6 @@ def g1() -> RobotSpec:
 
 
 def _morphology_robot(preset_name: str, name: str, source: str) -> RobotSpec:
-    from frbench.robots import morphology_presets
-    from frbench.robots.morphology_urdf import cached_spec
-
     params = getattr(morphology_presets, preset_name)
     return cached_spec(params, name, cache_dir() / "morphology" / f"{name}.urdf", source=source)
 

@@ -49,7 +49,7 @@ standing pose with the feet on flat ground):
    1 ms suffices the robot is refused, naming ``kp``, ``kd`` and ``physics_dt``.
 
 The standing height is not derived here: it is measured by settling the robot
-in both simulators (:func:`frbench.robots.standing.measured_height`).
+in both simulators (:func:`frbench.robot_checks.standing.measured_height`).
 """
 
 from __future__ import annotations
@@ -59,6 +59,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from frbench.errors import RobotFileError
+from frbench.robots import ground_truth
 from frbench.robots.sidecar import PHYSICS_STEPS
 from frbench.robots.spec import RobotSpec
 
@@ -130,8 +131,6 @@ def _leg_roles(spec: RobotSpec, legs: tuple[tuple[str, ...], ...]) -> list[list[
 def static_model(spec: RobotSpec):
     """(pinocchio model, data, q, v indices of the canonical joints) at the standing pose, feet at z = 0."""
     import pinocchio
-
-    from frbench.robots import ground_truth
 
     robot = ground_truth.load(spec)
     model = robot.model

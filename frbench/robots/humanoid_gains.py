@@ -45,7 +45,7 @@ N·m/rad, N·m·s/rad, s:
    missing factor. (G1 with hands: ankle pitch 256 → the CoM swayed 14 cm
    forward, over its toes; Talos: knees and ankles crept until its heels
    lifted.) Skipped when the feet leave no margin at all (`support`); the
-   check then says why (:func:`frbench.robots.check.static_support`).
+   check then says why (:func:`frbench.robot_checks.check.static_support`).
 4. **Effort.** A static torque above ``EFFORT_FRACTION`` of the effort limit
    is refused, naming the sidecar's ``effort`` and ``default_pose`` keys.
 5. **Damping and step.** ``Kd = 2 ζ sqrt(Kp I)``; the stiffest mode of the
@@ -67,6 +67,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from frbench.errors import RobotFileError
+from frbench.robots import ground_truth
 from frbench.robots.gains import (
     A_MAX,
     B_MAX,
@@ -81,8 +82,11 @@ from frbench.robots.gains import (
     _mode_rate,
     static_model,
 )
+from frbench.robots.kinematics import link_poses
 from frbench.robots.sidecar import PHYSICS_STEPS
+from frbench.robots.sim_urdf import sim_robot_file
 from frbench.robots.spec import RobotSpec
+from frbench.robots.urdf_tree import parse_urdf
 
 #: Gravity is doubled in the standing-stability test (step 3 of the module docstring).
 STABILITY_MARGIN = 2.0
@@ -214,11 +218,6 @@ def _foot_points(tree, foot: str) -> np.ndarray:
 
 def support(spec: RobotSpec) -> Support:
     """The support polygon and CoM of ``spec`` at its default pose (module docstring), from the simulated geometry."""
-    from frbench.robots import ground_truth
-    from frbench.robots.kinematics import link_poses
-    from frbench.robots.sim_urdf import sim_robot_file
-    from frbench.robots.urdf_tree import parse_urdf
-
     tree = parse_urdf(sim_robot_file(spec).path)
     poses = link_poses(tree, dict(zip(spec.joint_names, spec.default_pose)))
     local = {foot: _foot_points(tree, foot) for foot in spec.foot_links}

@@ -32,8 +32,13 @@ about z. A humanoid's kinematic standing height puts the lowest point of its
 *simulated* geometry (meshes fitted to boxes) on the ground.
 
 Gains and physics step: :mod:`frbench.robots.gains` (quadrupeds),
-:mod:`frbench.robots.humanoid_gains` (humanoids). Nominal height: measured
-by settling in both simulators (:mod:`frbench.robots.standing`).
+:mod:`frbench.robots.humanoid_gains` (humanoids). Nominal height: the
+sidecar's, else measured by settling in both simulators
+(:mod:`frbench.robot_checks.standing`, above the backends). This module runs
+no simulator: the spec it derives carries the kinematic height and
+``extra["height_source"] = "kinematic"`` (`needs_measured_height`), and
+:func:`frbench.robot_checks.lookup.get_robot` puts the measured height in
+(`with_standing`).
 
 The sidecar (``<stem>.frbench.toml``, :mod:`frbench.robots.sidecar`) overrides
 any of these.
@@ -48,6 +53,8 @@ import numpy as np
 
 from frbench.errors import RobotFileError
 from frbench.robots.builder import spec_from_urdf
+from frbench.robots.gains import derive_gains
+from frbench.robots.humanoid_gains import derive_humanoid_gains
 from frbench.robots.kinematics import chain_poses_batch, link_poses, standing_height
 from frbench.robots.leg_finder import hanging_limbs, infer_legs, limb_chains, upright_rotation
 from frbench.robots.sidecar import (
@@ -58,6 +65,7 @@ from frbench.robots.sidecar import (
     read_sidecar,
     sidecar_path,
 )
+from frbench.robots.sim_urdf import safe_file_stem, sim_robot_file
 from frbench.robots.spec import LinkGroup, RobotSpec, quadruped_groups
 from frbench.robots.urdf_tree import MOVING_TYPES, UrdfTree, merge_fixed_joints, parse_urdf, rotate_root
 
@@ -193,8 +201,6 @@ def _few_names(names: list[str], most: int = 40) -> str:
 
 def safe_name(stem: str) -> str:
     """A registry name from a file stem: lower case, unsafe characters as '_'."""
-    from frbench.robots.sim_urdf import safe_file_stem
-
     return safe_file_stem(stem.lower())
 
 
@@ -308,18 +314,19 @@ def provisional_spec(urdf: str | Path, sidecar: str | Path | None = None, name: 
     rotated = () if np.allclose(rotation, np.eye(3)) else tuple(float(v) for v in rotation.flatten())
     spec = spec.replace(trim_shins=kind == "quadruped", root_rotation=rotated)
     if kind == "humanoid":  # the simulated geometry (meshes fitted to boxes), lowest point of any link on the ground
-        from frbench.robots.sim_urdf import sim_robot_file
-
         sim_tree = parse_urdf(sim_robot_file(spec).path)
         spec = spec.replace(nominal_height=standing_height(sim_tree, joint_names, ordered_pose, list(sim_tree.links)))
     return spec, side, {leg: tuple(legs[leg][0]) for leg in leg_keys}
 
 
-def spec_from_path(urdf: str | Path, sidecar: str | Path | None = None, name: str | None = None, measure: bool = True) -> RobotSpec:
-    """The `RobotSpec` of any quadruped or humanoid URDF (module docstring); ``measure`` settles it for the height."""
-    from frbench.robots.gains import derive_gains
-    from frbench.robots.humanoid_gains import derive_humanoid_gains
+#: ``extra`` key of a spec by path naming where its nominal height comes from: "sidecar", "kinematic" (the
+#: standing height still to be measured in the simulators) or "measured" (`with_standing`).
+HEIGHT_SOURCE = "height_source"
 
+
+def spec_from_path(urdf: str | Path, sidecar: str | Path | None = None, name: str | None = None) -> RobotSpec:
+    """The `RobotSpec` of any quadruped or humanoid URDF (module docstring), with the sidecar's nominal height or
+    else the kinematic one (`needs_measured_height`)."""
     spec, side, legs = provisional_spec(urdf, sidecar, name)
     kinematic_height = spec.nominal_height
     derive = derive_humanoid_gains if spec.kind == "humanoid" else derive_gains
@@ -340,11 +347,22 @@ def spec_from_path(urdf: str | Path, sidecar: str | Path | None = None, name: st
     }
     if side.nominal_height is not None:
         spec = spec.replace(nominal_height=side.nominal_height)
-    elif measure:
-        from frbench.robots.standing import measured_height
+    extra[HEIGHT_SOURCE] = "sidecar" if side.nominal_height is not None else "kinematic"
+    return spec.replace(extra=tuple(extra.items()))
 
-        settled = measured_height(spec)
-        extra["standing"] = json.dumps(settled)
-        if np.isfinite(settled["nominal_height"]) and settled["nominal_height"] > 0:
-            spec = spec.replace(nominal_height=float(settled["nominal_height"]))
+
+def needs_measured_height(spec: RobotSpec) -> bool:
+    """Whether ``spec`` is a robot by path whose nominal height is still the kinematic one (no sidecar height)."""
+    return dict(spec.extra).get(HEIGHT_SOURCE) == "kinematic"
+
+
+def with_standing(spec: RobotSpec, settled: dict) -> RobotSpec:
+    """``spec`` with the standing height measured in the simulators, ``settled`` = {"nominal_height" [m],
+    <backend>: {"height", "diverged"}} (`frbench.robot_checks.standing.measured_height`), recorded in
+    ``extra["standing"]``; the kinematic height stays when the measurement is not a positive number."""
+    extra = dict(spec.extra)
+    extra["standing"] = json.dumps(settled)
+    extra[HEIGHT_SOURCE] = "measured"
+    if np.isfinite(settled["nominal_height"]) and settled["nominal_height"] > 0:
+        spec = spec.replace(nominal_height=float(settled["nominal_height"]))
     return spec.replace(extra=tuple(extra.items()))

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from frbench.io import atomic_write_text
 from frbench.robots.morphology import (
     FOOT_LINKS,
     JOINT_NAMES,
@@ -224,8 +225,6 @@ def cached_spec(params: MorphologyParams, name: str, path: str | Path, **spec_kw
 
     ``spec_kwargs`` go to :func:`spec_from_params` (e.g. ``source``).
     """
-    from frbench.io import atomic_write_text
-
     path = Path(path)
     text = urdf_string(params, name=name)
     try:

@@ -9,7 +9,9 @@ Lookup order for ``get_robot(name_or_path)``:
    zero-argument callable that returns a `RobotSpec` (read only on a miss of
    1–3 or when listing, never at ``import frbench``).
 
-An unknown name lists the known ones and suggests the closest.
+An unknown name lists the known ones and suggests the closest. A robot by path
+(1, 3) comes with its kinematic standing height: nothing here runs a simulator;
+:func:`frbench.robot_checks.lookup.get_robot` gives it the measured one.
 """
 
 from __future__ import annotations
@@ -24,7 +26,10 @@ from typing import Callable
 from frbench.errors import RobotFileError, unknown_name
 from frbench.io import atomic_write_text
 from frbench.robots.builtin import BUILTIN_ROBOTS
+from frbench.robots.infer import sidecar_path, spec_from_path
 from frbench.robots.paths import config_dir
+from frbench.robots.sidecar import NAME_PATTERN
+from frbench.robots.sim_urdf import sim_robot_file
 from frbench.robots.spec import RobotSpec
 
 ENTRY_POINT_GROUP = "frbench.robots"
@@ -69,8 +74,6 @@ def unavailable_reason(entry: dict) -> str | None:
 
 @lru_cache(maxsize=128)
 def _spec_by_name(name: str) -> RobotSpec:
-    from frbench.robots.infer import spec_from_path
-
     if name in BUILTIN_ROBOTS:
         return BUILTIN_ROBOTS[name]()
     users = user_robots()
@@ -94,8 +97,6 @@ def get_robot(name_or_path: str | RobotSpec) -> RobotSpec:
     if isinstance(name_or_path, RobotSpec):
         return name_or_path
     if _is_path(name_or_path):
-        from frbench.robots.infer import spec_from_path
-
         path = Path(name_or_path)
         if not path.is_file():
             raise RobotFileError(f"{path}: no such URDF file")
@@ -133,8 +134,6 @@ def _write_user_robots(robots: dict[str, dict]) -> None:
 
 def check_name(name: str) -> None:
     """Refuse a registry name that is unsafe or taken by a built-in robot."""
-    from frbench.robots.sidecar import NAME_PATTERN
-
     if not NAME_PATTERN.fullmatch(name):
         raise RobotFileError(f"--name {name!r}: expected 1-64 letters, digits, '_' or '-', starting with a letter or digit")
     if name in BUILTIN_ROBOTS:
@@ -147,13 +146,12 @@ def add_user_robot(urdf: str | Path, name: str, force: bool = False, check=None)
     Args:
         force: replace a robot of that name, and register even when ``check`` fails.
         check: None, or a callable spec -> (ok, problems) run before anything is
-            written (``frbench robot add`` passes the conformance check).
+            written (``frbench robot add`` passes the conformance check, which measures the standing height
+            first: the spec given here carries the kinematic one).
 
     Raises:
         RobotFileError: bad name, taken name without ``force``, unusable file, or a failed check without ``force``.
     """
-    from frbench.robots.infer import sidecar_path, spec_from_path
-
     check_name(name)
     robots = user_robots()
     if name in robots and not force:
@@ -162,8 +160,6 @@ def add_user_robot(urdf: str | Path, name: str, force: bool = False, check=None)
     if not urdf.is_file():
         raise RobotFileError(f"{urdf}: no such URDF file")
     spec = spec_from_path(urdf, name=name)
-    from frbench.robots.sim_urdf import sim_robot_file
-
     sim_robot_file(spec)  # refuses an unusable file before anything is written
     entry = {"urdf": str(urdf)}
     side = sidecar_path(urdf)

@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from frbench.errors import RobotFileError
+from frbench.robots.urdf_tree import MOVING_TYPES
 
 SIDECAR_SUFFIX = ".frbench.toml"
 #: Physics steps [s] both backends run identically: the 0.02 s control period in 4 to 20 equal steps.
@@ -117,8 +118,6 @@ class Sidecar:
 
     def check_against(self, tree, kind: str) -> None:
         """Refuse names of joints and links that ``tree`` (a `UrdfTree`) lacks, and malformed legs."""
-        from frbench.robots.urdf_tree import MOVING_TYPES
-
         moving = [j.name for j in tree.joints.values() if j.type in MOVING_TYPES]
         known = f"one of the file's moving joints ({_few(moving)})"
         for key in ("default_pose", "joint_limits"):

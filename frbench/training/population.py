@@ -19,7 +19,8 @@ import dataclasses
 import numpy as np
 
 from frbench.backends.base import PhysicsParams, RobotState
-from frbench.robots import get_robot, ground_truth
+from frbench.robot_checks.lookup import get_robot
+from frbench.robots import ground_truth
 from frbench.training.feasibility import can_stand
 from frbench.training.randomization import CONTROL_RANGES, morphology_spec, sample_morphologies, sample_physics
 from frbench.training.step_reward import HeadPoints

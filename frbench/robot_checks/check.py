@@ -20,7 +20,12 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from frbench.backends import make_backend
+from frbench.backends.base import CONTROL_DT, RobotState
+from frbench.robot_checks.lookup import get_robot
 from frbench.robots import ground_truth
+from frbench.robots.builtin import BUILTIN_ROBOTS
+from frbench.robots.humanoid_gains import support
 from frbench.robots.spec import RobotSpec
 
 MASS_TOLERANCE = 1e-6  # kg
@@ -72,9 +77,6 @@ def random_configurations(spec: RobotSpec, rng: np.random.Generator, n: int):
 
 def check_robot(spec: RobotSpec, n_random: int = 3, seed: int = 0, stand: bool = True) -> CheckReport:
     """Compare mass and CoM across Pinocchio, MuJoCo and PyBullet; test standing."""
-    from frbench.backends import make_backend
-    from frbench.backends.base import RobotState
-
     started = time.perf_counter()
     extra = dict(spec.extra)
     report = CheckReport(robot=spec.name, kind=spec.kind, physics_dt=spec.physics_dt, kp=list(spec.kp), kd=list(spec.kd))
@@ -137,8 +139,6 @@ def static_support(spec: RobotSpec) -> dict:
     The reason names what would fix it: a pose that brings the CoM over the feet (``default_pose``)
     when the feet are long enough, else soles in the URDF (no sidecar key adds foot area).
     """
-    from frbench.robots.humanoid_gains import support
-
     feet = support(spec)
     height = float(feet.com[2])
     need = MIN_TILT_MARGIN * height
@@ -168,9 +168,6 @@ def static_support(spec: RobotSpec) -> dict:
 
 def stand_test(spec: RobotSpec, backend_name: str, seconds: float = STAND_SECONDS) -> dict:
     """Hold the default pose with the PD for ``seconds`` on flat ground; report height and vertical force."""
-    from frbench.backends import make_backend
-    from frbench.backends.base import CONTROL_DT, RobotState
-
     backend = make_backend(backend_name, spec, 1)
     try:
         backend.reset(np.arange(1), RobotState.standing(spec, 1))
@@ -212,9 +209,6 @@ def checks_for_evaluation(names) -> dict[str, dict]:
     Returns spec name → {"ok", "problems", "physics_dt", "nominal_height"}; `frbench evaluate` prints
     the failures on stderr and records these in the results' ``robots`` table.
     """
-    from frbench.robots import get_robot
-    from frbench.robots.builtin import BUILTIN_ROBOTS
-
     out = {}
     for name in names:
         if name in BUILTIN_ROBOTS:

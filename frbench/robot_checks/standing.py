@@ -6,6 +6,8 @@ is averaged over the last `AVERAGE_SECONDS` in MuJoCo and in PyBullet. The
 nominal height is the mean of the two. Results are cached in
 ``<cache>/standing/`` by the spec's content (the cache is pruned like the
 simulation URDFs, see `frbench.robots.sim_urdf.prune_cache`).
+:func:`frbench.robot_checks.lookup.get_robot` gives a robot added by path this
+height; `frbench.robots` only derives the kinematic one (it runs no simulator).
 """
 
 from __future__ import annotations
@@ -15,8 +17,11 @@ import json
 
 import numpy as np
 
+from frbench.backends import make_backend
+from frbench.backends.base import CONTROL_DT, RobotState
 from frbench.io import atomic_write_text, sha256_text
 from frbench.robots.paths import cache_dir
+from frbench.robots.sim_urdf import prune_cache, sim_robot_file
 from frbench.robots.spec import RobotSpec
 
 SETTLE_SECONDS = 2.0
@@ -27,9 +32,6 @@ MEASURE_VERSION = 1
 
 def settle(spec: RobotSpec, backend_name: str, seconds: float = SETTLE_SECONDS) -> dict:
     """Hold the default pose on flat ground; the root height [m] averaged at the end, and divergence."""
-    from frbench.backends import make_backend
-    from frbench.backends.base import CONTROL_DT, RobotState
-
     backend = make_backend(backend_name, spec, 1)
     steps = int(round(seconds / CONTROL_DT))
     tail = max(1, int(round(AVERAGE_SECONDS / CONTROL_DT)))
@@ -53,8 +55,6 @@ def measured_height(spec: RobotSpec) -> dict:
     fields = dataclasses.asdict(spec)
     for key in ("name", "source", "license", "notes", "extra", "nominal_height"):
         fields.pop(key, None)
-    from frbench.robots.sim_urdf import prune_cache, sim_robot_file
-
     key = sha256_text(f"v{MEASURE_VERSION}:{sim_robot_file(spec).sha256}:{spec.nominal_height:.6f}:{fields!r}")[:20]
     path = cache_dir() / "standing" / f"{key}.json"
     if path.is_file():
