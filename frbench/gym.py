@@ -125,7 +125,6 @@ class FallRecoveryVectorEnv(VectorEnv):
         self.single_action_space = gymnasium.spaces.Box(-1.0, 1.0, shape=(n,), dtype=np.float32)
         self.observation_space = batch_space(self.single_observation_space, num_envs)
         self.action_space = batch_space(self.single_action_space, num_envs)
-        self._rng = np.random.default_rng()
         self._renderer = None
 
     # -- observations, actions, rewards ---------------------------------------------------------------------
@@ -155,9 +154,9 @@ class FallRecoveryVectorEnv(VectorEnv):
     # -- episodes -------------------------------------------------------------------------------------------
 
     def _new_episodes(self) -> np.ndarray:
-        """New fallen starts (drawn from the env's generator) for every environment; the first observation."""
-        self.core.reset(self.core.draw_fallen(self._rng, self.terrain))
-        self.core.begin()
+        """New fallen starts (the core env's `ProtocolStarts`, drawn from its generator) for every environment; the
+        first observation."""
+        self.core.new_episodes()
         if self._renderer is not None:
             for k in range(self.num_envs):
                 self._renderer.forget(k)
@@ -170,7 +169,7 @@ class FallRecoveryVectorEnv(VectorEnv):
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Draw new fallen starts (seeded) for every environment."""
         if seed is not None:
-            self._rng = np.random.default_rng(seed)
+            self.core.seed(seed)
         return self._new_episodes(), {}
 
     def step(self, actions):

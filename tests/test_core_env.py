@@ -31,8 +31,8 @@ def test_the_gym_env_gives_the_core_env_s_observations_and_rewards_step_for_step
     low, high = observation_bounds(spec)
     try:
         gym_obs, _ = gym_env.reset(seed=11)
-        core.reset(core.draw_fallen(np.random.default_rng(11), terrain))
-        core.begin()
+        core.seed(11)
+        core.new_episodes()  # the default start distribution: the protocol's fallen starts on the terrain
         np.testing.assert_array_equal(gym_obs, np.clip(core.flat_observation()[0], low, high).astype(np.float32))
         rewards = []
         for action in _actions(10, spec.n_joints):

@@ -32,7 +32,7 @@ def demo_env():
 
 
 def test_the_bank_holds_a_scripted_getting_up(demo_env):
-    bank = demo_env.demo.bank
+    bank = demo_env.starts.demo.bank
     assert len(bank.states) == 10 and bank.targets.shape == (10, 6, 12)
     assert bank.valid.all()
     upright_first = projected_gravity(bank.states[0].base_quat)[:, 2] < -0.9
@@ -44,7 +44,7 @@ def test_the_bank_holds_a_scripted_getting_up(demo_env):
 
 
 def test_sampled_starts_are_recorded_states(demo_env):
-    bank = demo_env.demo.bank
+    bank = demo_env.starts.demo.bank
     state, targets, tiles = bank.sample(np.array([1, 4]), np.random.default_rng(3))
     times = np.random.default_rng(3).integers(0, len(bank.states), size=2)
     for row, (t, i) in enumerate(zip(times, (1, 4))):
@@ -55,7 +55,7 @@ def test_sampled_starts_are_recorded_states(demo_env):
 
 
 def test_demo_episodes_start_from_the_bank_and_do_not_move_the_curriculum(demo_env):
-    assert demo_env.from_demo.all()
+    assert demo_env.starts.from_demo.all()
     levels = demo_env.curriculum.level.copy()
     for _ in range(4):
         _, _, done, extras = demo_env.step(torch.zeros(6, 12))

@@ -519,11 +519,11 @@ def test_rise_starts_begin_where_the_gate_opened_with_the_controller_in_its_rise
                          base_controller="keyframe-humanoid", residual_gate=True, rise_start_fraction=1.0,
                          action_scale=0.1)
     env = RecoveryTrainingEnv(cfg)
-    assert len(env.rise.bank) == 3  # each environment once, at the step its gate first opened
-    assert env.from_demo.all() and (env.core.transform.controller.phase == CROUCH).all()
-    recorded_q = np.concatenate([row[0].q for row in env.rise.bank])
+    assert len(env.starts.rise.bank) == 3  # each environment once, at the step its gate first opened
+    assert env.starts.from_demo.all() and (env.core.transform.controller.phase == CROUCH).all()
+    recorded_q = np.concatenate([row[0].q for row in env.starts.rise.bank])
     assert {tuple(np.round(q, 9)) for q in env.core.state.q} <= {tuple(np.round(q, 9)) for q in recorded_q}
-    starts = {tuple(np.round(env.core.transform.controller._clip(row[2]), 9)) for row in env.rise.bank}
+    starts = {tuple(np.round(env.core.transform.controller._clip(row[2]), 9)) for row in env.starts.rise.bank}
     assert {tuple(np.round(s, 9)) for s in env.core.transform.controller.start} <= starts  # the ramp starts at recorded targets
     for _ in range(3):
         env.step(torch.zeros(3, 29))

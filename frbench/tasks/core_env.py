@@ -6,18 +6,23 @@ frees the simulator in `close`. The rsl-rl `VecEnv` (`frbench.training.env`) and
 (`frbench.gym`, single and vector) are shells over it: they convert types, devices and spaces. Batched over N
 robot instances it covers:
 
-* reset: `draw_fallen` draws the protocol's fallen starts (one terrain, or one tile per environment with its
-  world offset and robot), `reset` places, settles and screens them (the engine) with the assist force cleared
-  for the settle and set after it, `begin` starts the episode's actions. Start sources (demo and rise starts,
-  `frbench.training.start_sources`) record their banks through `drive` and put episodes on recorded states
-  through `restart`; the assist force (`frbench.training.assist`) pushes through `set_base_force`;
+* reset: `new_episodes` asks the start distribution ``starts`` for new episodes of every environment, drawn
+  from the env's generator ``rng`` (`seed` replaces it): `ProtocolStarts` (the Gymnasium envs') or training's
+  `frbench.training.start_sources.CurriculumStarts` (curriculum tiles, demo and rise starts). They work
+  through the env's API: `draw_fallen` draws the protocol's fallen starts (one terrain, or one tile per
+  environment with its world offset and robot), `reset` places, settles and screens them (the engine) with the
+  assist force cleared for the settle and set after it, `begin` starts the episode's actions, `drive` runs
+  physics only (to record a bank of states) and `restart` puts episodes on recorded states; the assist force
+  (`frbench.training.assist`) pushes through `set_base_force`;
 * step: one decision `step(action)`: the action held (``hold``) for its control steps, each one
   ``transform.targets(state, a_t)`` (an action transform, `frbench.tasks.actions`) → the engine's ``advance``
   (clip to the joint limits, physics, signals, success test, metrics) → ``reward(task, a_t, a_{t−1}, a_{t−2},
   q̇_prev)`` (the one reward, `frbench.training.step_reward.StepReward`), rewards and terms summed over the held
   steps;
 * observations: `observation` (the engine's proprioception dict), `flat_observation` (its flat o_t) and
-  `policy_observation` (o_t with the previous action in policy units, the trainer's);
+  `policy_observation` (o_t with the previous action in policy units, the trainer's), with ``history`` > 0 also
+  ``history`` (N, H, ·) and ``long_history`` (N, T, ·): the last H (T) policy observations, oldest first,
+  refilled with the first one at new episodes;
 * termination: episodes last ``episode_steps`` control steps and end together (`done`);
 * what an episode tells: `success_info` (after each step) and `episode_record` (the record ``frbench evaluate``
   writes).
@@ -55,18 +60,26 @@ class CoreEnv:
         reward: ``reward(task, a_t, a_{t−1}, a_{t−2}, q̇_prev) -> (reward (N,), terms, alive (N,))``, or None
             (no reward: zeros).
         assist: an assist force (``clear(env)``, ``apply(env, env_steps)``) or None.
+        starts: the start distribution (``new_episodes(env, rng)``); default `ProtocolStarts` on ``terrain``.
+        rng: the generator every start is drawn from (default: an unseeded one; `seed` replaces it).
+        history, long_history: policy observations kept (H, T; None / 0: none kept).
         episode_steps: control steps per episode.
         variants, noise_rng, ground_height, nominal_height, track_metrics, surface_rules: as in `make_backend`
             and `RecoveryTask`.
     """
 
     def __init__(self, spec: RobotSpec, backend: str, terrain, num_envs: int, *, transform, hold,
-                 reward: Callable | None = None, assist=None, episode_steps: int = EPISODE_STEPS, variants=None,
-                 noise_rng=None, ground_height: Callable | None = None, nominal_height=None,
+                 reward: Callable | None = None, assist=None, starts=None, rng: np.random.Generator | None = None,
+                 history: int | None = None, long_history: int = 0, episode_steps: int = EPISODE_STEPS,
+                 variants=None, noise_rng=None, ground_height: Callable | None = None, nominal_height=None,
                  track_metrics: bool = True, surface_rules: bool = True):
         self.spec, self.terrain, self.num_envs = spec, terrain, int(num_envs)
         self.default_pose = np.asarray(spec.default_pose)
         self.transform, self.actions, self.reward, self.assist = transform, hold, reward, assist
+        self.starts = ProtocolStarts(terrain) if starts is None else starts
+        self.rng = np.random.default_rng() if rng is None else rng
+        self.history_length, self.long_history_length = history, long_history
+        self.history = self.long_history = None
         self.episode_steps = int(episode_steps)
         #: Env steps taken so far (N per control step): the schedules of start sources and the assist read it.
         self.env_steps = 0
@@ -142,6 +155,20 @@ class CoreEnv:
         self.task.set_base_force(force)
 
     # -- episodes -----------------------------------------------------------------------------------------
+    def seed(self, seed: int) -> None:
+        """Draw the following starts from a new generator seeded with ``seed``."""
+        self.rng = np.random.default_rng(seed)
+
+    def new_episodes(self) -> None:
+        """New episodes for every environment from the start distribution (``starts``, drawn from ``rng``); the
+        observation history refilled with the first policy observation."""
+        self.starts.new_episodes(self, self.rng)
+        if self.history_length is not None:
+            o_t = self.policy_observation()
+            self.history = np.repeat(o_t[:, None, :], self.history_length, axis=1)
+            if self.long_history_length:
+                self.long_history = np.repeat(o_t[:, None, :], self.long_history_length, axis=1)
+
     def draw_fallen(self, rng: np.random.Generator, terrains, offsets: Sequence | None = None,
                     specs: Sequence[RobotSpec] | None = None) -> FallenStarts:
         """The protocol's fallen starts, one per environment, drawn from ``rng`` in environment order: on
@@ -185,6 +212,11 @@ class CoreEnv:
             step_reward, terms, alive = self._control_step(action_prev, action_prev2)
             reward += step_reward
             term_sums = {k: term_sums.get(k, 0.0) + v for k, v in terms.items()}
+        if self.history_length is not None:
+            o_t = self.policy_observation()[:, None, :]
+            self.history = np.concatenate([self.history[:, 1:], o_t], axis=1)
+            if self.long_history is not None:
+                self.long_history = np.concatenate([self.long_history[:, 1:], o_t], axis=1)
         return reward, term_sums, alive
 
     def _control_step(self, action_prev: np.ndarray, action_prev2: np.ndarray):
@@ -233,3 +265,16 @@ class CoreEnv:
                 "smoothness": np.asarray(metrics.smoothness).copy(),
                 "peak_contact_force": metrics.peak_contact_force.copy(), "rolled_over": metrics.rolled_over.copy(),
                 "diverged": diverged.copy()}
+
+
+class ProtocolStarts:
+    """The protocol's fallen starts on one ``terrain`` for every episode (`frbench.tasks.initial_states.draw_start`,
+    settled and screened), the actions begun at zero: the Gymnasium envs' start distribution."""
+
+    def __init__(self, terrain):
+        self.terrain = terrain
+
+    def new_episodes(self, env: CoreEnv, rng: np.random.Generator) -> None:
+        """New episodes for every environment of ``env``, drawn from ``rng``."""
+        env.reset(env.draw_fallen(rng, self.terrain))
+        env.begin()

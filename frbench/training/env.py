@@ -55,7 +55,7 @@ from frbench.training.population import TrainingRobots, yaw_of
 from frbench.tasks.actions import DirectTargets
 from frbench.training.residual import ResidualController
 from frbench.training.step_reward import StepReward
-from frbench.training.start_sources import DemoStarts, RiseStarts
+from frbench.training.start_sources import CurriculumStarts
 from frbench.training.terrain_grid import build_grid
 
 __all__ = ["RecoveryTrainingEnv", "TrainEnvConfig"]
@@ -87,16 +87,14 @@ class RecoveryTrainingEnv(VecEnv):
         self.raster = HeightRaster(self.grid, sorted(self.grid.tiles))
         reward = StepReward(cfg.reward, self.spec, self.robots.nominal_height, self._ground_height, self.robots.head)
         assist = AssistForce(cfg.assist_force, cfg.assist_until, self.robots.env_masses)
+        self.starts = CurriculumStarts(cfg, self.grid, self.raster, self.curriculum, self.robots)
         self.core = CoreEnv(self.spec, cfg.backend, self.grid.world, n, transform=targets_of, hold=actions,
-                            reward=reward, assist=assist, episode_steps=cfg.episode_steps,
+                            reward=reward, assist=assist, starts=self.starts, rng=self.rng, history=cfg.history,
+                            long_history=cfg.long_history, episode_steps=cfg.episode_steps,
                             variants=self.robots.variants, ground_height=self._ground_height,
                             nominal_height=self.robots.nominal_height, track_metrics=False, surface_rules=False)
-        self.demo = DemoStarts(cfg.demo_start_fraction, cfg.demo_start_until, cfg.demo_refresh_episodes,
-                               cfg.demo_steps, cfg.demo_stride)
-        self.rise = RiseStarts(cfg.rise_start_fraction, cfg.demo_refresh_episodes) if cfg.rise_start_fraction else None
         self.last_episode_stats: dict[str, float] = {}
-        self.from_demo = np.zeros(n, dtype=bool)
-        self._reset_all()
+        self._new_episodes()
 
     # ------------------------------------------------------------------ the core env's parts, for callers
     @property
@@ -142,62 +140,15 @@ class RecoveryTrainingEnv(VecEnv):
 
     def _ground_height(self, xy: np.ndarray) -> np.ndarray:
         """Terrain height [m] (N,) under world points ``xy`` (N, 2) on each environment's tile."""
-        return self.raster.lookup(self.tile_row, xy[:, None, :])[:, 0]
-
-    # ------------------------------------------------------------------ episodes
-    def _reset_all(self) -> None:
-        """New episodes for every environment: fresh fallen starts, a fraction of them replaced by bank states."""
-        cfg, n = self.cfg_obj, self.num_envs
-        fraction = self.demo.fraction(self.env_steps)
-        if self.demo.needs_recording(fraction):
-            self._fresh_starts()
-            self.demo.record(self.core, self.specs, self.assignment, self.tile_row)
-        if self.rise is not None:
-            if self.rise.needs_recording():
-                self._fresh_starts()
-                self.rise.record(self.core, self.core.transform.fresh_copy(), self.spec, self.default_pose,
-                                 self.tile_row)
-            self.rise.count_episode()
-        self._fresh_starts()
-        action = np.zeros((n, self.spec.n_joints))
-        self.from_demo = self.demo.draw(self.rng, n, fraction)
-        if self.from_demo.any():
-            ids = np.flatnonzero(self.from_demo)
-            state, targets, tiles = self.demo.sample(ids, self.rng)
-            self._restart_from(ids, state, tiles)
-            action[ids] = (targets - self.default_pose) / cfg.action_scale
-        self.core.begin(action)  # a_{t-1} = a_t: both zero at a fresh start; the transform reset
-        if self.rise is not None:
-            drawn = self.rise.draw(self.rng, self.from_demo)
-            if drawn is not None:
-                ids, state, tiles, targets, paths = drawn
-                self._restart_from(ids, state, tiles)
-                self.from_demo[ids] = True
-                self.core.transform.enter_gate(ids, targets, self.core.state.q, paths)
-        o_t = self.core.policy_observation()
-        self.history = np.repeat(o_t[:, None, :], cfg.history, axis=1)
-        self.long_history = np.repeat(o_t[:, None, :], cfg.long_history, axis=1) if cfg.long_history else None
-
-    def _restart_from(self, ids: np.ndarray, state, tiles) -> None:
-        """Start environments ``ids`` from recorded ``state`` (len(ids) rows) on their recorded ``tiles``."""
-        self.core.restart(ids, state)
-        self.tile_row[ids] = tiles
-
-    def _fresh_starts(self) -> None:
-        """Fallen starts on every environment's curriculum tile, settled for ``settle_steps`` by the engine."""
-        tiles = list(zip(self.curriculum.family.tolist(), self.curriculum.level.tolist()))
-        self.tile_row = np.array([self.raster.index[t] for t in tiles])
-        starts = self.core.draw_fallen(self.rng, [self.grid.tiles[t] for t in tiles],
-                                       [self.grid.offsets[t] for t in tiles], [self.specs[k] for k in self.assignment])
-        self.core.reset(starts, self.robots.episode_params(), self.cfg_obj.settle_steps)
-        self.episode_length_buf.zero_()
+        return self.raster.lookup(self.starts.tile_row, xy[:, None, :])[:, 0]
 
     # ------------------------------------------------------------------ observations
     def _observations(self, o_t: np.ndarray) -> TensorDict:
+        """The core env's state as rsl-rl's observation groups (float32 tensors, `observation_groups`)."""
         core = self.core
         s = core.state
-        scan = self.raster.scan(self.tile_row, s.base_pos, yaw_of(s.base_quat))
-        return observation_groups(o_t, self.history, self.long_history, s, core.contacts, core.params,
+        scan = self.raster.scan(self.starts.tile_row, s.base_pos, yaw_of(s.base_quat))
+        return observation_groups(o_t, core.history, core.long_history, s, core.contacts, core.params,
                                   self.robots.env_masses, self.robots.com_xy(s, core.whole_body_com()), scan,
                                   core.physics_diverged)
 
@@ -209,55 +160,26 @@ class RecoveryTrainingEnv(VecEnv):
     def step(self, actions: torch.Tensor):
         """One decision for every environment (rsl-rl `VecEnv.step`): the action held for
         `TrainEnvConfig.action_hold` control steps (fewer if the episode ends first), their rewards summed."""
-        n, cfg = self.num_envs, self.cfg_obj
+        n = self.num_envs
         action = np.clip(actions.detach().cpu().numpy().astype(np.float64), -10.0, 10.0)
         reward, term_sums, alive = self.core.step(action)
-        held = self.core.actions.held
         self.episode_length_buf += 1
-        o_t = self.core.policy_observation()
-        self.history = np.concatenate([self.history[:, 1:], o_t[:, None, :]], axis=1)
-        if self.long_history is not None:
-            self.long_history = np.concatenate([self.long_history[:, 1:], o_t[:, None, :]], axis=1)
-        log = {f"/reward/{k}": _alive_mean(v, alive) / held for k, v in term_sums.items()}
+        log = {f"/reward/{k}": _alive_mean(v, alive) / self.core.actions.held for k, v in term_sums.items()}
         done = self.core.done
         if done:
-            success = self.core.success.success.copy()
-            self.last_episode_stats = self._episode_stats(success, alive)
+            self.last_episode_stats = self.starts.end_episodes(self.core, self.core.success.success.copy(), alive)
             log.update({f"/episode/{k}": v for k, v in self.last_episode_stats.items()})
-            if cfg.curriculum:  # the curriculum judges fallen starts only
-                fallen = np.flatnonzero(~self.from_demo)
-                self.curriculum.update(fallen, success[fallen])
             log.update({f"/curriculum/{k}": float(v) for k, v in self.curriculum.stats().items()})
-            self._reset_all()
-            o_t = self.core.policy_observation()
-        obs = self._observations(o_t)
+            self._new_episodes()
+        obs = self._observations(self.core.policy_observation())
         dones = torch.full((n,), bool(done))
         extras = {"time_outs": torch.full((n,), bool(done)), "log": log}
         return obs, torch.as_tensor(reward, dtype=torch.float32), dones, extras
 
-    def _episode_stats(self, success: np.ndarray, alive: np.ndarray) -> dict[str, float]:
-        """Success rate of the episodes from fallen starts, overall, per family (all levels) and, on a split
-        backend, per simulator (``success_in_<simulator>``); the diverged fraction; with demo starts, their
-        share and their success rate."""
-        fallen = ~self.from_demo
-        stats = {"success_all": float(success[fallen].mean()) if fallen.any() else 0.0,
-                 "diverged": float((~alive).mean()), "mean_level": float(self.curriculum.level.mean())}
-        if self.cfg_obj.assist_force > 0.0:
-            stats["assist_fraction"] = float(self.core.assist.fraction)
-        if self.from_demo.any():
-            stats["demo_start_share"] = float(self.from_demo.mean())
-            stats["success_demo_starts"] = float(success[self.from_demo].mean())
-        for f, family in enumerate(self.cfg_obj.families):
-            mine = (self.curriculum.family == f) & fallen
-            if mine.any():
-                stats[f"success_{family}"] = float(success[mine].mean())
-        parts = self.core.simulator_parts()
-        for simulator, rows in parts if len(parts) > 1 else ():
-            mine = np.zeros_like(fallen)
-            mine[rows] = fallen[rows]
-            if mine.any():
-                stats[f"success_in_{simulator}"] = float(success[mine].mean())
-        return stats
+    def _new_episodes(self) -> None:
+        """New episodes for every environment (the core env's start distribution, `CurriculumStarts`)."""
+        self.core.new_episodes()
+        self.episode_length_buf.zero_()
 
     def close(self) -> None:
         """Free the simulator (the core env's)."""

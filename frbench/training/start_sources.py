@@ -116,3 +116,104 @@ class RiseStarts:
         state = RobotState(**{f: np.concatenate([getattr(r, f) for r in rows]) for f in _STATE_FIELDS})
         return (ids, state, [self.bank[k][1] for k in picks], np.stack([self.bank[k][2] for k in picks]),
                 np.array([self.bank[k][3] for k in picks]))
+
+
+class CurriculumStarts:
+    """Training's start distribution, the ``starts`` of its `frbench.tasks.core_env.CoreEnv`: every episode a
+    fresh fallen start on the tile its curriculum level says (the protocol's draw, moved to the tile, of the
+    environment's robot, settled under the episode's randomised physics), a fraction of them replaced by
+    `DemoStarts` and `RiseStarts` states; the curriculum moves on the episodes from fallen starts.
+
+    Args:
+        cfg: the `TrainEnvConfig` (start-source schedules, settle steps, action scale, families, curriculum).
+        grid: the world of terrain tiles (`terrain_grid.build_grid`); ``raster`` its `HeightRaster`.
+        curriculum: the `TerrainCurriculum` (each environment's family and level).
+        robots: the batch's `TrainingRobots` (robot per environment, physics per episode).
+
+    After `new_episodes`: ``tile_row`` (N,) each environment's tile (a row of ``raster``), ``from_demo`` (N,)
+    the episodes started from a bank (demo or rise).
+    """
+
+    def __init__(self, cfg, grid, raster, curriculum, robots):
+        self.cfg, self.grid, self.raster, self.curriculum, self.robots = cfg, grid, raster, curriculum, robots
+        self.demo = DemoStarts(cfg.demo_start_fraction, cfg.demo_start_until, cfg.demo_refresh_episodes,
+                               cfg.demo_steps, cfg.demo_stride)
+        self.rise = RiseStarts(cfg.rise_start_fraction, cfg.demo_refresh_episodes) if cfg.rise_start_fraction else None
+        self.tile_row: np.ndarray | None = None
+        self.from_demo = np.zeros(cfg.num_envs, dtype=bool)
+
+    def new_episodes(self, env, rng: np.random.Generator) -> None:
+        """New episodes for every environment of the core env ``env``: fresh fallen starts (re-recording a bank
+        first when it is due), a fraction of them replaced by bank states; the episodes' actions begun."""
+        n, spec = env.num_envs, env.spec
+        fraction = self.demo.fraction(env.env_steps)
+        if self.demo.needs_recording(fraction):
+            self._fresh_starts(env, rng)
+            self.demo.record(env, self.robots.specs, self.robots.assignment, self.tile_row)
+        if self.rise is not None:
+            if self.rise.needs_recording():
+                self._fresh_starts(env, rng)
+                self.rise.record(env, env.transform.fresh_copy(), spec, env.default_pose, self.tile_row)
+            self.rise.count_episode()
+        self._fresh_starts(env, rng)
+        action = np.zeros((n, spec.n_joints))
+        self.from_demo = self.demo.draw(rng, n, fraction)
+        if self.from_demo.any():
+            ids = np.flatnonzero(self.from_demo)
+            state, targets, tiles = self.demo.sample(ids, rng)
+            self._restart_from(env, ids, state, tiles)
+            action[ids] = (targets - env.default_pose) / self.cfg.action_scale
+        env.begin(action)  # a_{t-1} = a_t: both zero at a fresh start; the transform reset
+        if self.rise is not None:
+            drawn = self.rise.draw(rng, self.from_demo)
+            if drawn is not None:
+                ids, state, tiles, targets, paths = drawn
+                self._restart_from(env, ids, state, tiles)
+                self.from_demo[ids] = True
+                env.transform.enter_gate(ids, targets, env.state.q, paths)
+
+    def _restart_from(self, env, ids: np.ndarray, state: RobotState, tiles) -> None:
+        """Start environments ``ids`` from recorded ``state`` (len(ids) rows) on their recorded ``tiles``."""
+        env.restart(ids, state)
+        self.tile_row[ids] = tiles
+
+    def _fresh_starts(self, env, rng: np.random.Generator) -> None:
+        """Fallen starts on every environment's curriculum tile, settled for ``settle_steps`` by the engine."""
+        tiles = list(zip(self.curriculum.family.tolist(), self.curriculum.level.tolist()))
+        self.tile_row = np.array([self.raster.index[t] for t in tiles])
+        specs = [self.robots.specs[k] for k in self.robots.assignment]
+        starts = env.draw_fallen(rng, [self.grid.tiles[t] for t in tiles], [self.grid.offsets[t] for t in tiles], specs)
+        env.reset(starts, self.robots.episode_params(), self.cfg.settle_steps)
+
+    def end_episodes(self, env, success: np.ndarray, alive: np.ndarray) -> dict[str, float]:
+        """The episodes' statistics (`episode_stats`), then the curriculum's move on the fallen starts' ``success``
+        (N,) bool (when the config has a curriculum)."""
+        stats = self.episode_stats(env, success, alive)
+        if self.cfg.curriculum:  # the curriculum judges fallen starts only
+            fallen = np.flatnonzero(~self.from_demo)
+            self.curriculum.update(fallen, success[fallen])
+        return stats
+
+    def episode_stats(self, env, success: np.ndarray, alive: np.ndarray) -> dict[str, float]:
+        """Success rate of the episodes from fallen starts, overall, per family (all levels) and, on a split
+        backend, per simulator (``success_in_<simulator>``); the diverged fraction; with demo starts, their
+        share and their success rate."""
+        fallen = ~self.from_demo
+        stats = {"success_all": float(success[fallen].mean()) if fallen.any() else 0.0,
+                 "diverged": float((~alive).mean()), "mean_level": float(self.curriculum.level.mean())}
+        if self.cfg.assist_force > 0.0:
+            stats["assist_fraction"] = float(env.assist.fraction)
+        if self.from_demo.any():
+            stats["demo_start_share"] = float(self.from_demo.mean())
+            stats["success_demo_starts"] = float(success[self.from_demo].mean())
+        for f, family in enumerate(self.cfg.families):
+            mine = (self.curriculum.family == f) & fallen
+            if mine.any():
+                stats[f"success_{family}"] = float(success[mine].mean())
+        parts = env.simulator_parts()
+        for simulator, rows in parts if len(parts) > 1 else ():
+            mine = np.zeros_like(fallen)
+            mine[rows] = fallen[rows]
+            if mine.any():
+                stats[f"success_in_{simulator}"] = float(success[mine].mean())
+        return stats
