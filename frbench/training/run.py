@@ -28,14 +28,23 @@ import dataclasses
 import json
 import math
 import os
+import shutil
 import time
 from pathlib import Path
 
+import torch
+from tqdm import tqdm
 
 from frbench.errors import FrbenchError
 from frbench.io import atomic_write_text
 from frbench.policies.checkpoint import CHECKPOINT_FORMAT
+from frbench.robots.morphology import morphology_ranges
+from frbench.training import distributed
+from frbench.training.config import TrainEnvConfig
 from frbench.training.curves import PROGRESS_FILE, LossLog, TensorBoardCurve, plot_training, write_curve_csv
+from frbench.training.env import RecoveryTrainingEnv
+from frbench.training.methods import make_rma_adaptation_cfg, make_train_cfg
+from frbench.training.rewards import check_weights
 
 RUNNER_FILE, STATE_FILE, POLICY_FILE, CONFIG_FILE = "runner.pt", "state.pt", "policy.pt", "config.json"
 SNAPSHOT_DIR = "snapshots"
@@ -44,8 +53,6 @@ SNAPSHOT_EVERY_STEPS = 1_000_000
 
 
 def _atomic_torch_save(obj, path: Path) -> None:
-    import torch
-
     tmp = path.with_name(f".{path.name}.tmp")
     torch.save(obj, tmp)
     os.replace(tmp, path)
@@ -53,8 +60,6 @@ def _atomic_torch_save(obj, path: Path) -> None:
 
 def env_cfg_from_dict(data: dict, source: str = "config.json"):
     """A `TrainEnvConfig` from its JSON form (``source`` names the file in the error of a bad one)."""
-    from frbench.training.config import TrainEnvConfig
-
     try:
         return TrainEnvConfig.from_dict(data)
     except (TypeError, ValueError) as exc:
@@ -67,8 +72,6 @@ ADAPTATION_METHOD = "rma-adaptation"
 
 def _adaptation_setup(teacher: Path | None):
     """(env config, train config) of an RMA phase-2 run from its phase-1 ``teacher`` run folder."""
-    from frbench.training.methods import make_rma_adaptation_cfg
-
     if teacher is None:
         raise FrbenchError(f"--method {ADAPTATION_METHOD} needs --teacher RUN, a finished 'rma' run folder")
     config_path = Path(teacher) / CONFIG_FILE
@@ -125,13 +128,6 @@ class TrainingRun:
         policy fine-tuned in both), recorded as a stage too. ``train_overrides`` (new runs)
         are merged into the method's rsl-rl config (e.g. ``{"actor": {"distribution_cfg": {"init_std": 0.2}}}``)
         and saved with it."""
-        import torch
-
-        from frbench.training.env import RecoveryTrainingEnv
-        from frbench.training.methods import make_train_cfg
-
-        from frbench.training import distributed
-
         torch.set_num_threads(1)
         distributed.init_process_group()
         self.ranks = ranks = distributed.ranks()
@@ -200,11 +196,6 @@ class TrainingRun:
                    backend: str | None = None):
         """The env config with the reward ``weights``, ``morphology`` ranges and ``backend`` (None: unchanged)
         changed; records the stage in ``config`` (``__init__`` writes config.json)."""
-        import torch
-
-        from frbench.robots.morphology import morphology_ranges
-        from frbench.training.rewards import check_weights
-
         check_weights(weights)
         morphology_ranges(morphology)  # validates names and values before anything is written
         state_path = self.out / STATE_FILE
@@ -224,8 +215,6 @@ class TrainingRun:
         return env_cfg
 
     def _load_state(self) -> None:
-        import torch
-
         self.runner.load(str(self.out / RUNNER_FILE))
         state = torch.load(self.out / STATE_FILE, weights_only=False)
         self.iteration, self.env_steps, self.wall = state["iteration"], state["env_steps"], state["wall"]
@@ -238,8 +227,6 @@ class TrainingRun:
 
     def save(self) -> None:
         """Write runner, state, policy and progress (each atomically; rank 0 only, with every rank's state)."""
-        from frbench.training import distributed
-
         rank_states = distributed.gather_objects({"curriculum": self.env.curriculum.state_dict(),
                                                   "rng": self.env.rng.bit_generator.state})
         if not self.ranks.is_main:
@@ -261,8 +248,6 @@ class TrainingRun:
 
     def _snapshot(self) -> None:
         """Copy policy.pt to snapshots/ when the run has crossed another ``SNAPSHOT_EVERY_STEPS`` env steps."""
-        import shutil
-
         folder = self.out / SNAPSHOT_DIR
         taken = sorted(int(p.stem.split("_")[1]) for p in folder.glob("policy_*.pt")) if folder.is_dir() else []
         last = taken[-1] if taken else 0
@@ -275,10 +260,6 @@ class TrainingRun:
     # ------------------------------------------------------------------ training
     def train(self, progress_bar: bool = True) -> None:
         """Train until ``total_steps`` env steps, checkpointing every ``checkpoint_every`` iterations."""
-        from tqdm import tqdm
-
-        from frbench.training import distributed
-
         total_iterations = math.ceil(self.total_steps / self.steps_per_iteration)
         bar = tqdm(total=total_iterations, initial=self.iteration, unit="it", disable=not (progress_bar and self.ranks.is_main),
                    dynamic_ncols=True)
@@ -323,8 +304,6 @@ def zero_output_layer(actor) -> None:
     action is 0 for every observation: it starts as its base controller exactly, and moves away only where
     the policy gradient says so (residual policy learning, Silver et al. 2018). A random initial layer adds
     about 0.01 rad of state-dependent offsets to key frames whose own search put them at an optimum."""
-    import torch
-
     last = [m for m in actor.mlp.modules() if isinstance(m, torch.nn.Linear)][-1]
     with torch.no_grad():
         last.weight.zero_()
