@@ -84,3 +84,23 @@ def test_the_core_env_frees_the_simulator_it_built_once():
     assert closed == [] and core.task.backend is core.backend  # the task works on it, never closes it
     core.close()
     assert closed == [1]
+
+
+def test_the_shells_and_start_sources_reach_the_simulator_only_through_the_core_env():
+    """No shell (gym, the rsl-rl env) and no start source or assist builds a backend or a task, or calls a
+    method of one: the core env builds both and its API (drive, restart, set_base_force, ...) is the way in."""
+    import ast
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1] / "frbench"
+    files = ["gym.py", "training/env.py", "training/start_sources.py", "training/demo_starts.py", "training/assist.py"]
+    found = []
+    for name in files:
+        for node in ast.walk(ast.parse((root / name).read_text())):
+            if isinstance(node, ast.Name) and node.id in ("make_backend", "RecoveryTask"):
+                found.append((name, node.id))
+            if isinstance(node, ast.Attribute) and node.attr in ("backend", "task"):
+                owner = node.value.attr if isinstance(node.value, ast.Attribute) else node.value.id
+                if owner != "cfg":  # the config's backend name
+                    found.append((name, f"{owner}.{node.attr}"))  # e.g. self.core.backend, self.task
+    assert found == [("training/env.py", "core.backend")]  # RecoveryTrainingEnv.backend: read by a throughput benchmark

@@ -44,6 +44,7 @@ import torch
 from rsl_rl.env import VecEnv
 from tensordict import TensorDict
 
+from frbench.tasks.actions import DirectTargets
 from frbench.tasks.core_env import CoreEnv
 from frbench.training.action_hold import HeldAction
 from frbench.training.assist import AssistForce
@@ -52,7 +53,6 @@ from frbench.training.curriculum import TerrainCurriculum
 from frbench.training.height_raster import HeightRaster
 from frbench.training.observation_groups import observation_groups
 from frbench.training.population import TrainingRobots, yaw_of
-from frbench.tasks.actions import DirectTargets
 from frbench.training.residual import ResidualController
 from frbench.training.step_reward import StepReward
 from frbench.training.start_sources import CurriculumStarts
