@@ -97,7 +97,8 @@ class LearnedPolicy:
         self.long_frames = int(config["env"].get("long_history", 0)) if "long_history" in self.groups else 0
         actor_class = resolve_callable(current_class_path(actor_cfg.pop("class_name")))
         widths = deployable_group_widths(self.num_actions, self.frames, self.long_frames)
-        extrinsics = data["actor_state_dict"].get("extrinsics_normalizer._mean")
+        # the extrinsics' width: the input width of RMA's extrinsics encoder (its first linear layer), weights (H, E)
+        extrinsics = data["actor_state_dict"].get("encoder.0.weight")
         self.ignored_widths = {g: int(extrinsics.shape[-1]) if extrinsics is not None else 11 for g in ignored}
         widths.update(self.ignored_widths)
         dummy = TensorDict({g: torch.zeros(1, w) for g, w in widths.items()}, batch_size=[1])

@@ -10,8 +10,8 @@ command on this machine, with the environment torchrun would give them
   from its own seed stream (:func:`rank_seed`; rank 0 keeps the run's seed, so
   a 1-process run is rank 0 of any N-process run);
 * joins one process group: NCCL on ``cuda:LOCAL_RANK`` where CUDA is available,
-  else gloo on the CPU (:class:`DistributedRunner` replaces rsl-rl's
-  CUDA-only ``_configure_multi_gpu``);
+  else gloo on the CPU (:class:`DistributedRunner`, the one place frbench
+  overrides a private method of rsl-rl: see there why);
 * averages every gradient over the ranks before each optimiser step: rsl-rl's
   PPO reduces the actor's and critic's, :func:`all_reduce_gradients` those of
   an extra optimiser (the MCP estimator's); rsl-rl's empirical normalisers
@@ -28,15 +28,21 @@ from __future__ import annotations
 
 import json
 import os
+import socket
 import subprocess
 import sys
+import tempfile
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import torch
+import torch.distributed as dist
+from rsl_rl.runners import OnPolicyRunner
+from rsl_rl.utils import reduce_gradients_in_buckets
 
 from frbench.errors import FrbenchError
-from rsl_rl.runners import OnPolicyRunner
 
 #: Gradient bucket of the extra optimisers' all-reduce [MB] (rsl-rl's PPO default).
 GRAD_BUCKET_MB = 25.0
@@ -73,8 +79,6 @@ def rank_seed(seed: int, rank: int) -> int:
 def training_device() -> str:
     """Where this rank's models live: ``cuda:LOCAL_RANK`` in a multi-process run on a CUDA machine, else
     ``cpu`` (a single process trains on the CPU, as before)."""
-    import torch
-
     r = ranks()
     if r.world_size > 1 and torch.cuda.is_available():
         return f"cuda:{r.local_rank}"
@@ -83,15 +87,11 @@ def training_device() -> str:
 
 def init_process_group() -> None:
     """Join the process group (NCCL for a CUDA device, gloo otherwise); nothing for one process."""
-    import torch.distributed as dist
-
     r = ranks()
     if r.world_size <= 1 or dist.is_initialized():
         return
     device = training_device()
     if device.startswith("cuda"):
-        import torch
-
         torch.cuda.set_device(r.local_rank)
     dist.init_process_group(backend="nccl" if device.startswith("cuda") else "gloo", rank=r.rank,
                             world_size=r.world_size)
@@ -99,16 +99,12 @@ def init_process_group() -> None:
 
 def barrier() -> None:
     """Wait for every rank (nothing for one process)."""
-    import torch.distributed as dist
-
     if dist.is_initialized():
         dist.barrier()
 
 
 def gather_objects(obj) -> list:
     """``obj`` of every rank, in rank order (``[obj]`` for one process); every rank must call it."""
-    import torch.distributed as dist
-
     if not dist.is_initialized():
         return [obj]
     out = [None] * dist.get_world_size()
@@ -119,17 +115,23 @@ def gather_objects(obj) -> list:
 def all_reduce_gradients(parameters) -> None:
     """Average the gradients of ``parameters`` over the ranks (nothing for one process); call it between
     ``backward()`` and the optimiser's ``step()`` of an optimiser that rsl-rl's PPO does not reduce."""
-    import torch.distributed as dist
-
     if not dist.is_initialized():
         return
-    from rsl_rl.utils.utils import reduce_gradients_in_buckets
-
     reduce_gradients_in_buckets(list(parameters), dist.get_world_size(), GRAD_BUCKET_MB)
 
 
 class DistributedRunner(OnPolicyRunner):
-    """rsl-rl's `OnPolicyRunner` whose multi-process set-up takes gloo on the CPU as well as NCCL on GPUs."""
+    """rsl-rl's `OnPolicyRunner` whose multi-process set-up takes gloo on the CPU as well as NCCL on GPUs.
+
+    The one private method of rsl-rl that frbench overrides, because rsl-rl (5.5.1) offers no public way: its
+    runner's constructor calls ``_configure_multi_gpu``, which reads ``WORLD_SIZE`` and, for more than one
+    process, requires ``device == f"cuda:{LOCAL_RANK}"`` (a ValueError otherwise) and calls
+    ``init_process_group(backend="nccl")`` itself (so a gloo group joined before it fails as a second
+    initialisation). Its ``cfg["multi_gpu"]`` key is overwritten there, not read. This override sets what the
+    original sets (the ranks, ``is_distributed`` and ``cfg["multi_gpu"]``, which the algorithm's
+    ``construct_algorithm`` and the logger read) and joins the group with :func:`init_process_group`; everything
+    after it (parameter broadcast, gradient and normaliser reduction, rank-0 logging) is rsl-rl's own.
+    """
 
     def _configure_multi_gpu(self) -> None:
         r = ranks()
@@ -170,8 +172,6 @@ def without_nproc(argv: list[str]) -> list[str]:
 
 
 def _free_port() -> int:
-    import socket
-
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))
         return sock.getsockname()[1]
@@ -191,9 +191,6 @@ def launch(nproc: int, argv: list[str], resume=None) -> int:
     apart), then are stopped (they would wait for it forever). ``resume``: the run folder of
     ``--resume``, whose process count is checked before anything starts. Each process gets
     ``cores // nproc`` MuJoCo threads (at least 1) unless ``FRBENCH_MUJOCO_THREADS`` is set."""
-    import tempfile
-    import time
-
     if nproc < 1:
         raise FrbenchError(f"--nproc {nproc}: expected at least 1 process")
     if resume is not None and (Path(resume) / "config.json").is_file():
@@ -232,8 +229,6 @@ def launch(nproc: int, argv: list[str], resume=None) -> int:
 def mean_over_ranks(stats: dict) -> dict:
     """Each key's mean over the ranks' values that are numbers (``stats`` itself for one process); every rank
     must call it. E.g. the episode statistics of a progress row."""
-    import torch.distributed as dist
-
     if not dist.is_initialized():
         return stats
     every = gather_objects(stats)
