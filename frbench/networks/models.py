@@ -15,6 +15,9 @@ the estimator's input and its reconstruction target, the zero padding before
 an episode start does not bias them, and an exported policy carries one
 mean/std pair.
 
+To read their groups they override ``_get_obs_dim`` and ``_get_latent_dim``, the hooks that rsl-rl's own
+subclasses of MLPModel (``CNNModel``, ``RNNModel``) override for the same purpose.
+
 Exports (``as_onnx`` / ``as_jit``) take the RAW o_t (N, D) and the raw second
 input (history, extrinsics or long history) and return deterministic actions;
 they need torch only (no frbench, no rsl-rl) to run.
