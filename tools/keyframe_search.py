@@ -1,8 +1,10 @@
 """Black-box search of the ``keyframe-humanoid`` parameters (CMA-ES, optional extra ``tune``).
 
 Every generation runs ``popsize × len(starts)`` real recovery episodes side by
-side in one batched `RecoveryTask` per simulator (one candidate per simulation, the
-task's own drawn starts, its settle, its success test), scores each candidate
+side in one batched simulator per backend (one candidate per simulation), through
+the episode runner (`frbench.evaluation.episodes.run_episodes`: the drawn starts,
+their settle, the success test; the per-step pelvis heights come back through its
+``on_step`` callback), scores each candidate
 by `episode_scores` averaged over its starts, and writes the best parameters
 found so far to ``--out`` (JSON, the same format as the shipped
 ``keyframe_humanoid_params.json``) after every generation. ``--stage rise``
@@ -44,6 +46,7 @@ from frbench.policies.keyframe_humanoid import (
     decode,
 )
 from tools.keyframe_states import STATE_FIELDS, parse_seeds
+from frbench.evaluation.episodes import run_episodes
 from frbench.tasks.initial_states import FALL_KINDS, FallenStarts, draw_starts
 from frbench.backends import make_backend
 from frbench.tasks.recovery import EPISODE_STEPS, RecoveryTask
@@ -154,9 +157,10 @@ def non_prone_starts(seeds, episodes: int = 8) -> list[tuple[int, int]]:
 
 
 class Evaluator:
-    """Runs candidates from fixed g1/flat/level-1 starts in one batched task of ``backend`` (episodes of ``steps``
-    control steps, default a whole episode, scored by `episode_scores` with ``deadline``; ``roll=True``:
-    `ROLL_EPISODE_STEPS` scored by `roll_scores`)."""
+    """Runs candidates from fixed g1/flat/level-1 starts in one batched simulator of ``backend``, built once and
+    reused by every generation, through `run_episodes` (episodes of ``steps`` control steps, default a whole
+    episode, scored by `episode_scores` with ``deadline``; ``roll=True``: `ROLL_EPISODE_STEPS` scored by
+    `roll_scores`)."""
 
     def __init__(self, starts: list[tuple[int, int]], popsize: int, backend: str = "mujoco", roll: bool = False,
                  steps: int = EPISODE_STEPS, deadline: int | None = None, late: int = 0):
@@ -174,8 +178,8 @@ class Evaluator:
             q=np.tile(np.concatenate([d.q for d in drawn]), (popsize, 1)),
             kinds=self.kinds * popsize,
         )
-        terrain, n = make_terrain("flat", 1, starts[0][0]), popsize * len(starts)
-        self.task = RecoveryTask(self.spec, make_backend(backend, self.spec, n, terrain=terrain), terrain, n)
+        self.terrain, n = make_terrain("flat", 1, starts[0][0]), popsize * len(starts)
+        self.backend = make_backend(backend, self.spec, n, terrain=self.terrain)
         self.roll, self.steps, self.deadline, self.late = roll, steps, deadline, late
 
     def run(self, parameters: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -183,46 +187,60 @@ class Evaluator:
         parameter rows (popsize, D)."""
         rows = np.repeat(np.asarray(parameters, dtype=float), self.n_starts, axis=0)
         policy = KeyframeHumanoidPolicy(rows)
-        obs = self.task.reset(self.starts)
-        policy.reset(self.spec, len(rows))
+        steps = ROLL_EPISODE_STEPS if self.roll else self.steps
+        trace = StepTrace(steps, len(rows), policy if self.roll else None)
+        task = run_episodes(self.spec, self.backend, self.terrain, self.starts, policy, steps=steps, on_step=trace,
+                            check=False)
         shape = (self.popsize, self.n_starts)
         if self.roll:
-            return _roll_rollout(self.task, policy, obs, ROLL_EPISODE_STEPS, shape)
-        return _scored_rollout(self.task, policy, obs, self.steps, shape, self.deadline, self.late)
+            return _roll_result(trace, shape)
+        return _scored_result(task, trace, shape, self.deadline, self.late)
 
     def close(self) -> None:
-        self.task.backend.close()
+        self.backend.close()
 
 
-def _scored_rollout(task, policy, obs: dict, steps: int, shape: tuple[int, int], deadline: int | None = None,
-                    late: int = 0):
-    """Run ``policy`` for ``steps`` control steps of ``task`` from ``obs``; (mean score per candidate
-    (popsize,), upright successes and max pelvis heights [m], both ``shape`` = (popsize, n_starts)); ``deadline``,
-    ``late``: see `episode_scores`."""
-    n = shape[0] * shape[1]
-    heights, gravity_z = np.empty((steps, n)), np.zeros((steps, n))
-    for t in range(steps):
-        obs = task.step(policy.act(obs))
-        heights[t], gravity_z[t] = task.signals.height, task.signals.gravity_z
-    tracker = task.success
-    args = (heights, gravity_z, tracker.success, tracker.up_height, tracker.floor_height)
+class StepTrace:
+    """Per-step records of N episodes over ``steps`` control steps, as an ``on_step(task, targets)`` callback of
+    `run_episodes` (or called after each step of a loop of one's own): the pelvis height above the ground
+    ``heights`` (T, N) [m] and the projected gravity z ``gravity_z`` (T, N), both as the success test read them;
+    with a ``policy`` also its ``phases`` (T, N) and the projected gravity x ``gravity_x`` (T, N) (the roll stage).
+    """
+
+    def __init__(self, steps: int, n: int, policy=None):
+        self.heights, self.gravity_z = np.empty((steps, n)), np.zeros((steps, n))
+        self.policy = policy
+        if policy is not None:
+            self.phases, self.gravity_x = np.empty((steps, n), dtype=int), np.empty((steps, n))
+        self.t = 0
+
+    def __call__(self, task, targets=None) -> None:
+        t, signals = self.t, task.signals
+        self.heights[t], self.gravity_z[t] = signals.height, signals.gravity_z
+        if self.policy is not None:
+            self.phases[t], self.gravity_x[t] = self.policy.phase, task.gravity[:, 0]
+        self.t += 1
+
+
+def _scored_result(task, trace: StepTrace, shape: tuple[int, int], deadline: int | None = None, late: int = 0):
+    """(mean score per candidate (popsize,), upright successes and max pelvis heights [m], both ``shape`` =
+    (popsize, n_starts)) of the episodes ``trace`` recorded and ``task``'s success test; ``deadline``, ``late``:
+    see `episode_scores`."""
+    heights, tracker = trace.heights, task.success
+    args = (heights, trace.gravity_z, tracker.success, tracker.up_height, tracker.floor_height)
     scores, good = episode_scores(*args, deadline=deadline, late=late), upright_success(*args, deadline=deadline)
     return scores.reshape(shape).mean(axis=1), good.reshape(shape), heights.max(axis=0).reshape(shape)
 
 
-def _roll_rollout(task, policy, obs: dict, steps: int, shape: tuple[int, int]):
-    """Like `_scored_rollout`, scored by `roll_scores`; the "successes" are the episodes that reached the
+def _roll_result(trace: StepTrace, shape: tuple[int, int]):
+    """Like `_scored_result`, scored by `roll_scores`; the "successes" are the episodes that reached the
     push-up face down and were still face down (g_x > 0.5) at the end."""
     from frbench.policies.scripted_humanoid import LIE, ROLL
 
-    n = shape[0] * shape[1]
-    phases, gravity_x, heights = np.empty((steps, n), dtype=int), np.empty((steps, n)), np.empty((steps, n))
-    for t in range(steps):
-        obs = task.step(policy.act(obs))
-        phases[t], gravity_x[t], heights[t] = policy.phase, obs["projected_gravity"][:, 0], task.signals.height
+    phases, gravity_x = trace.phases, trace.gravity_x
     scores = roll_scores(phases, gravity_x)
     good = ((phases != LIE) & (phases != ROLL)).any(axis=0) & (gravity_x[-1] > 0.5)
-    return scores.reshape(shape).mean(axis=1), good.reshape(shape), heights.max(axis=0).reshape(shape)
+    return scores.reshape(shape).mean(axis=1), good.reshape(shape), trace.heights.max(axis=0).reshape(shape)
 
 
 #: Parameters tuned by ``--stage roll`` (the others stay at ``--init``). Not ``ramp.lie``: it also sets how prone
@@ -249,7 +267,12 @@ class RiseEvaluator:
     """Runs candidates from recorded mid-recovery states (a ``.npz`` of `RobotState` fields, e.g. folded on
     hands and feet at the end of ``SQUAT``) with the controller entering ``CROUCH``: the rise alone, at full
     gains and without the settle, for ``steps`` control steps, with the task's success test; ``deadline``
-    [control steps]: an up after it does not count (`episode_scores`)."""
+    [control steps]: an up after it does not count (`episode_scores`).
+
+    Its episodes do not go through `run_episodes`: they start from the recorded states themselves (velocities
+    included, no settle, the previous action = the recorded angles), which the runner's reset (drawn fallen
+    starts, settled) does not offer; ``RecoveryTask.restart`` replaces the state only after a settle and after
+    the first observation. It sets the episode's start on the task here instead."""
 
     def __init__(self, states_file: str, popsize: int, steps: int = 150, backend: str = "mujoco",
                  deadline: int | None = None):
@@ -289,7 +312,11 @@ class RiseEvaluator:
         policy = KeyframeHumanoidPolicy(rows)
         policy.reset(self.spec, n)
         policy.enter_gate(np.arange(n), self.targets, task.state.q)
-        return _scored_rollout(task, policy, obs, self.steps, (self.popsize, self.n_starts), self.deadline)
+        trace = StepTrace(self.steps, n)
+        for _ in range(self.steps):
+            obs = task.step(policy.act(obs))
+            trace(task)
+        return _scored_result(task, trace, (self.popsize, self.n_starts), self.deadline)
 
     def close(self) -> None:
         self.task.backend.close()
