@@ -2,30 +2,16 @@
 
 from __future__ import annotations
 
+from frbench.backends.simulators import BACKENDS, backend_class, make_simulator
+from frbench.backends.split import SPLIT_NAME, SplitBackend
 from frbench.errors import unknown_name
 
-#: Backend name → "module:Class", imported on first use.
-BACKENDS = {
-    "mujoco": "frbench.backends.mujoco_backend:MujocoBackend",
-    "pybullet": "frbench.backends.pybullet_backend:PybulletBackend",
-}
+__all__ = ["BACKENDS", "backend_class", "make_backend", "simulator_parts", "training_backend_names"]
 
 
 def training_backend_names() -> tuple[str, ...]:
     """Every name `make_backend` accepts: the simulators and the split batch ``mujoco+pybullet``."""
-    from frbench.backends.split import SPLIT_NAME
-
     return (*BACKENDS, SPLIT_NAME)
-
-
-def backend_class(name: str):
-    """The backend class registered as ``name``."""
-    import importlib
-
-    if name not in BACKENDS:
-        raise unknown_name("backend", name, BACKENDS)
-    module, _, cls = BACKENDS[name].partition(":")
-    return getattr(importlib.import_module(module), cls)
 
 
 def make_backend(name: str, spec, num_envs: int, terrain=None, variants=None):
@@ -36,23 +22,16 @@ def make_backend(name: str, spec, num_envs: int, terrain=None, variants=None):
     ``name`` may also be ``mujoco+pybullet`` (training only): the batch split between the two simulators
     (`frbench.backends.split`).
     """
-    from frbench.backends.split import SPLIT_NAME, SplitBackend
-
     if name == SPLIT_NAME:
         return SplitBackend(spec, num_envs, terrain=terrain, variants=variants)
     if name not in BACKENDS:
         raise unknown_name("backend", name, training_backend_names())
-    cls = backend_class(name)
-    if variants is None:
-        return cls(spec, num_envs, terrain=terrain)
-    return cls(spec, num_envs, terrain=terrain, variants=variants)
+    return make_simulator(name, spec, num_envs, terrain=terrain, variants=variants)
 
 
 def simulator_parts(backend) -> list[tuple[str, slice]]:
     """(simulator name, its simulations' rows) of each simulator ``backend`` runs: the parts of a split
     batch (`frbench.backends.split`), else one part with every row."""
-    from frbench.backends.split import SplitBackend
-
     if isinstance(backend, SplitBackend):
         return backend.part_rows()
     return [(backend.name, slice(0, backend.num_envs))]

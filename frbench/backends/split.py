@@ -18,6 +18,7 @@ from dataclasses import fields
 import numpy as np
 
 from frbench.backends.base import Contacts, PhysicsParams, RobotState
+from frbench.backends.simulators import make_simulator
 from frbench.robots.spec import RobotSpec
 
 #: The name ``frbench train --backend`` accepts for the split batch, and its two parts in order.
@@ -49,8 +50,6 @@ class SplitBackend:
 
     def __init__(self, spec: RobotSpec, num_envs: int, terrain=None, variants=None,
                  names: tuple[str, ...] = SPLIT_PARTS):
-        from frbench.backends import make_backend
-
         self.name = "+".join(names)
         self.spec, self.num_envs = spec, int(num_envs)
         sizes = split_sizes(self.num_envs, len(names))
@@ -62,7 +61,7 @@ class SplitBackend:
             if variants is not None:
                 specs, assignment, frictions, payloads = variants
                 part_variants = (specs, np.asarray(assignment)[rows], frictions, payloads)
-            self.parts.append(make_backend(name, spec, rows.stop - rows.start, terrain=terrain, variants=part_variants))
+            self.parts.append(make_simulator(name, spec, rows.stop - rows.start, terrain=terrain, variants=part_variants))
         first = self.parts[0]
         for part in self.parts[1:]:
             for attr in ("link_names", "physics_dt", "substeps"):

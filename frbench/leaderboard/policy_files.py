@@ -29,7 +29,10 @@ from pathlib import Path
 
 from frbench.errors import FrbenchError, ResultsError
 from frbench.io import sha256_file
+from frbench.leaderboard.jsonfile import read_capped
+from frbench.leaderboard.records import DuplicateRecord, create_exclusive
 from frbench.policies.contract import sidecar_path
+from frbench.policies.registry import BUILTIN_POLICIES
 
 #: Largest policy file (with its sidecar) a record may carry [bytes]: 16 MiB.
 MAX_POLICY_BYTES = 16 * 1024 * 1024
@@ -73,8 +76,6 @@ def _sha256(data: bytes) -> str:
 
 def _read_capped(path: Path, label: str, budget: int) -> bytes:
     """The bytes of ``path``, refused by size before reading (and never reading more than ``budget`` + 1)."""
-    from frbench.leaderboard.jsonfile import read_capped
-
     if path.is_dir():
         raise ResultsError(f"{label}: {path} is a directory; attach the policy file itself (a run folder's policy.pt)")
     data = read_capped(path, budget, f"{label}: {path}", lambda size: f"{label}: {path} is "
@@ -102,8 +103,6 @@ def read_policy_file(path: str | os.PathLike, label: str = "--policy-file", layo
 
 def check_attachable(policy_file: PolicyFile, results: dict, source: str) -> None:
     """Refuse a file that cannot be the policy of ``results``: not its checkpoint, or results of a built-in policy."""
-    from frbench.policies.registry import BUILTIN_POLICIES
-
     recorded = results["policy"]["sha256"]
     if recorded is not None and recorded != policy_file.sha256:
         raise ResultsError(
@@ -119,8 +118,6 @@ def check_attachable(policy_file: PolicyFile, results: dict, source: str) -> Non
 
 def store(root: Path, policy_file: PolicyFile) -> None:
     """Write the policy file (and sidecar) under ``root/policies`` unless an identical copy is there already."""
-    from frbench.leaderboard.records import DuplicateRecord, create_exclusive
-
     folder = root / POLICIES
     if folder.exists() and not folder.resolve().is_relative_to(root.resolve()):
         raise FrbenchError(f"{folder} leads outside the leaderboard folder {root}; refusing to write there")

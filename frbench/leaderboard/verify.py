@@ -36,6 +36,9 @@ from pathlib import Path
 import numpy as np
 
 from frbench.errors import FrbenchError
+from frbench.io import sha256_file
+from frbench.leaderboard.policy_files import stored_problems
+from frbench.policies.registry import BUILTIN_POLICIES, SHIPPED_CHECKPOINTS, shipped_checkpoint
 from frbench.tasks.protocol import CONTROL_DT, PROTOCOL_VERSION
 
 #: Relative tolerance on continuous episode metrics when library versions differ.
@@ -76,16 +79,11 @@ def sample_indices(total: int, sample: int, seed: int) -> list[int]:
 
 
 def _sha256(path: Path) -> str:
-    from frbench.io import sha256_file
-
     return sha256_file(path)
 
 
 def resolve_policy(record: dict, root: Path, report: Verification) -> str | None:
     """The policy reference to re-run (None after adding a failure); see the module doc for the order."""
-    from frbench.leaderboard.policy_files import stored_problems
-    from frbench.policies.registry import BUILTIN_POLICIES, SHIPPED_CHECKPOINTS, shipped_checkpoint
-
     results = record["results"]
     recorded = results["policy"]["sha256"]
     attached = record.get("policy_file")
