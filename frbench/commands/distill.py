@@ -19,7 +19,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--terrain", default="flat", help="terrain family of the starts")
     p.add_argument("--level", type=int, default=1)
     p.add_argument("--simulators", default="mujoco,pybullet", help="acting simulators, alternated per batch")
-    p.add_argument("--out", type=Path, required=True, help="run folder (resumed when it exists)")
+    p.add_argument("--out", type=Path, required=True, help="run folder (resumed when it exists; the training "
+                   "settings and --rounds may change, the data settings may not)")
     p.add_argument("--rounds", type=int, default=3, help="round 0 behaviour cloning, then DAgger rounds")
     p.add_argument("--episodes-per-round", type=int, default=32)
     p.add_argument("--batch", type=int, default=2, help="episodes run side by side in one simulator")
@@ -27,7 +28,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--beta", type=float, default=0.0, help="DAgger rounds: fraction of episodes the teacher acts")
     p.add_argument("--frames", type=int, default=3, help="observation history frames of the student")
     p.add_argument("--hidden", default="256,256,128", help="the student MLP's hidden widths")
-    p.add_argument("--epochs", type=int, default=30)
+    p.add_argument("--epochs", type=int, default=30, help="training passes over the data per round")
+    p.add_argument("--input-noise", type=float, default=0.0,
+                   help="training input noise, a fraction of each input's spread (default 0)")
+    p.add_argument("--weight-decay", type=float, default=0.0, help="AdamW weight decay (default 0)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--jobs", type=int, default=1, help="processes running batches")
     p.set_defaults(func=run)
@@ -54,7 +58,8 @@ def run(args) -> int:
     config = DistillConfig(teacher=args.teacher, teacher_settings=args.teacher_settings, robot=args.robot,
                            terrain=args.terrain, level=args.level, simulators=simulators, rounds=args.rounds,
                            episodes_per_round=args.episodes_per_round, batch=args.batch, steps=args.steps,
-                           beta=args.beta, frames=args.frames, hidden=hidden, epochs=args.epochs, seed=args.seed)
+                           beta=args.beta, frames=args.frames, hidden=hidden, epochs=args.epochs,
+                           input_noise=args.input_noise, weight_decay=args.weight_decay, seed=args.seed)
     progress = run_distillation(args.out, config, jobs=args.jobs, log=lambda line: print(line, flush=True))
     data = progress["dataset"]
     print(f"dataset: {data['episodes']} episodes, {data['samples']} samples, {data['cpu_s']:.0f} teacher CPU s; "

@@ -18,8 +18,9 @@ A run folder holds:
 * ``progress.json``: per round the dataset size (episodes, samples), its CPU cost [s], the successes of
   the acting policy (per simulator and start kind) and the training loss.
 
-A killed run resumes where it stopped: batches whose shards all exist and rounds whose checkpoint exists
-are not redone. Batches run in ``jobs`` processes.
+A killed run resumes where it stopped: batches whose shards all exist are not rerun, and a round's
+student is not retrained unless the training settings (`TRAINING_FIELDS`) changed. Batches run in
+``jobs`` processes.
 """
 
 from __future__ import annotations
@@ -62,6 +63,8 @@ class DistillConfig:
     epochs: int = 30
     minibatch: int = 512
     learning_rate: float = 1e-3
+    weight_decay: float = 0.0
+    input_noise: float = 0.0  # training: input noise, a fraction of each input's spread in the dataset
     seed: int = 0
 
     def __post_init__(self):
@@ -245,12 +248,20 @@ def _write_progress(run: Path, config: DistillConfig, trained: dict) -> dict:
     return progress
 
 
+#: Fields that change only the student's training: a resumed run may change them (its students are retrained).
+TRAINING_FIELDS = ("rounds", "hidden", "epochs", "minibatch", "learning_rate", "weight_decay", "input_noise")
+
+
+def _training_settings(config: DistillConfig) -> dict:
+    return {k: v for k, v in config.as_dict().items() if k in TRAINING_FIELDS and k != "rounds"}
+
+
 def _check_config(run: Path, config: DistillConfig) -> None:
-    """Store the config in a new run; refuse a resumed run whose config differs."""
+    """Store the config in a new run; refuse a resumed run whose data settings differ (`TRAINING_FIELDS` may)."""
     path = Path(run) / "config.json"
     if path.is_file():
         stored = json.loads(path.read_text())
-        changed = sorted(k for k, v in config.as_dict().items() if k != "rounds" and stored.get(k) != v)
+        changed = sorted(k for k, v in config.as_dict().items() if k not in TRAINING_FIELDS and stored.get(k) != v)
         if changed:
             raise FrbenchError(f"{path}: the run was made with other settings ({', '.join(changed)}); "
                                "use a new --out or the same settings")
@@ -266,7 +277,7 @@ def run_distillation(run: Path, config: DistillConfig, jobs: int = 1, log=print)
     for r in range(config.rounds):
         _collect_round(run, config, r, jobs, log)
         checkpoint = run / "checkpoints" / f"round{r}.pt"
-        if not checkpoint.is_file() or r not in trained:
+        if not checkpoint.is_file() or trained.get(r, {}).get("settings") != _training_settings(config):
             obs, history, actions, metas = load_rounds(run, r)
             cpu = time.process_time()
             actor, loss = train_student(obs, history, actions, config, r)
@@ -274,7 +285,7 @@ def run_distillation(run: Path, config: DistillConfig, jobs: int = 1, log=print)
                        "cpu_s": round(sum(m["cpu_s"] for m in metas), 1)}
             save_student(checkpoint, actor, config, r, dataset)
             trained[r] = {"samples": int(len(obs)), "loss": loss, "cpu_s": round(time.process_time() - cpu, 1),
-                          "checkpoint": str(checkpoint)}
+                          "checkpoint": str(checkpoint), "settings": _training_settings(config)}
             atomic_write_text(trained_path, json.dumps(trained, indent=1) + "\n")
             log(f"round {r}: student trained on {len(obs)} samples of {len(metas)} episodes, MSE {loss:.4f} rad²")
         _write_progress(run, config, trained)

@@ -65,7 +65,9 @@ def student_actions(actor, o_t: np.ndarray, history: np.ndarray) -> np.ndarray:
 def train_student(obs: np.ndarray, history: np.ndarray, actions: np.ndarray, config, round_index: int):
     """A new actor fitted to (obs (M, F), history (M, H·F)) → teacher actions (M, J) [rad] by MSE with Adam:
     ``config.epochs`` passes in minibatches of ``config.minibatch``, seeded by (``config.seed``, round).
-    The normaliser takes the whole dataset's mean and spread. Returns (actor, last epoch's mean MSE [rad²])."""
+    The normaliser takes the whole dataset's mean and spread; each minibatch's inputs get Gaussian noise of
+    ``config.input_noise`` × that spread (a regulariser against the student's own drift), and AdamW decays the
+    weights by ``config.weight_decay``. Returns (actor, last epoch's mean MSE [rad²])."""
     import torch
 
     torch.manual_seed(config.seed * 1000 + round_index)
@@ -75,14 +77,21 @@ def train_student(obs: np.ndarray, history: np.ndarray, actions: np.ndarray, con
     targets = torch.as_tensor(actions, dtype=torch.float32)
     actor.obs_normalizer.update(torch.cat([inputs["policy"], inputs["history"]], dim=-1))
     actor.eval()  # the normaliser keeps the dataset's statistics
-    optimizer = torch.optim.Adam(actor.parameters(), lr=config.learning_rate)
+    spread = actor.obs_normalizer.std * config.input_noise
+    width = inputs["policy"].shape[1]
+    optimizer = torch.optim.AdamW(actor.parameters(), lr=config.learning_rate, weight_decay=config.weight_decay)
     loss_sum = 0.0
     for _ in range(config.epochs):
         order = torch.randperm(len(obs), generator=generator)
         loss_sum = 0.0
         for start in range(0, len(obs), config.minibatch):
             index = order[start:start + config.minibatch]
-            loss = torch.nn.functional.mse_loss(actor(inputs[index]), targets[index])
+            batch = inputs[index].clone()
+            if config.input_noise > 0:
+                noise = torch.randn(len(index), len(spread), generator=generator) * spread
+                batch["policy"] = batch["policy"] + noise[:, :width]
+                batch["history"] = batch["history"] + noise[:, width:]
+            loss = torch.nn.functional.mse_loss(actor(batch), targets[index])
             optimizer.zero_grad()
             loss.backward()
             optimizer.step()
