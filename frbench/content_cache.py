@@ -16,6 +16,10 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Callable
 
+
+from frbench.errors import FrbenchError
+from frbench.io import atomic_write_bytes
+from frbench.robots.paths import cache_dir
 #: Memo of `object_key` by object identity (the object is kept so that its id stays unique).
 _OBJECT_KEYS: dict[int, tuple[object, str]] = {}
 
@@ -49,17 +53,12 @@ def source_key(*modules: str) -> str:
 
 def cache_path(kind: str, key: str, suffix: str) -> Path:
     """Where the entry ``key`` of ``kind`` lives: ``$FRBENCH_CACHE/<kind>/<key><suffix>``."""
-    from frbench.robots.paths import cache_dir
-
     return cache_dir() / kind / f"{key}{suffix}"
 
 
 def cached_bytes(kind: str, key: str, suffix: str, compute: Callable[[], bytes],
                  load: Callable[[bytes], object]):
     """``load`` of the stored entry, or of ``compute()`` stored first; a failing load computes it again."""
-    from frbench.errors import FrbenchError
-    from frbench.io import atomic_write_bytes
-
     path = cache_path(kind, key, suffix)
     if path.is_file():
         try:

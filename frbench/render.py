@@ -34,6 +34,8 @@ from pathlib import Path
 import numpy as np
 
 from frbench.errors import FrbenchError
+from frbench.io import atomic_write_bytes, sha256_text
+from frbench.robots.paths import cache_dir, cmeel_share
 
 #: Render group of the visual meshes, and the group the collision shapes move to when meshes are drawn (hidden).
 VISUAL_GROUP, HIDDEN_GROUP = 1, 3
@@ -95,9 +97,6 @@ def visual_meshes(urdf_path: str) -> tuple[VisualMesh, ...]:
     loads). Pinocchio resolves ``package://`` against example-robot-data's share folder and the URDF's folders,
     assimp reads the mesh files; the extracted meshes are cached under frbench's cache folder by the URDF's checksum (Go1's 0.7 M triangles
     take seconds to extract)."""
-    from frbench.io import sha256_text
-    from frbench.robots.paths import cache_dir
-
     urdf = Path(urdf_path)
     key = sha256_text(f"{VISUAL_MESH_VERSION}\n{urdf.resolve()}\n{urdf.read_text(errors='replace')}")[:20]
     cached = cache_dir() / "visual-meshes" / f"{urdf.stem}-{key}.npz"
@@ -109,8 +108,6 @@ def visual_meshes(urdf_path: str) -> tuple[VisualMesh, ...]:
     meshes = _extract_visual_meshes(urdf)
     try:
         import io
-
-        from frbench.io import atomic_write_bytes
 
         buffer = io.BytesIO()
         np.savez_compressed(buffer, **_meshes_to_arrays(meshes))
@@ -140,8 +137,6 @@ def _extract_visual_meshes(urdf: Path) -> tuple[VisualMesh, ...]:
     import warnings
 
     import pinocchio as pin
-
-    from frbench.robots.paths import cmeel_share
 
     try:
         model = pin.buildModelFromUrdf(str(urdf), pin.JointModelFreeFlyer())
@@ -173,8 +168,6 @@ def _extract_visual_meshes(urdf: Path) -> tuple[VisualMesh, ...]:
 
 def _assimp() -> Path | None:
     """assimp's command-line tool, installed with Pinocchio (cmeel-assimp), or None."""
-    from frbench.robots.paths import cmeel_share
-
     try:
         tool = cmeel_share().parent / "bin" / "assimp"
     except FrbenchError:
@@ -417,8 +410,6 @@ def write_png(image: np.ndarray, path: Path) -> Path:
     import io
 
     from PIL import Image
-
-    from frbench.io import atomic_write_bytes
 
     buffer = io.BytesIO()
     picture = Image.fromarray(image).quantize(colors=256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)

@@ -43,6 +43,7 @@ from frbench.backends.mujoco_com import CentreOfMass
 from frbench.backends.mujoco_model import build_model, joint_addresses
 from frbench.robots.sim_urdf import sim_robot_file
 from frbench.robots.spec import RobotSpec
+from frbench.terrains import make_terrain
 
 #: MuJoCo's warnings that mean a simulation blew up (it then resets that MjData itself).
 _INSTABILITY = as_slice(np.array([int(getattr(mujoco.mjtWarning, w))
@@ -70,8 +71,6 @@ class MujocoBackend:
         Each variant is compiled once and the model fields in which it differs
         from ``spec``'s model are written into the batch's expanded fields.
         """
-        from frbench.terrains import make_terrain
-
         self.spec = spec
         self.num_envs = int(num_envs)
         self.terrain = terrain if terrain is not None else make_terrain("flat", 1, 0)
@@ -230,8 +229,6 @@ class MujocoBackend:
         position stage would compute it (`frbench.backends.mujoco_com`)."""
         if self._com is None:
             if self._com_of is None:
-                from frbench.terrains import make_terrain
-
                 robot_alone = build_model(self.spec, make_terrain("flat", 1, 0))
                 self._com_of = CentreOfMass(self.model, robot_alone, self.num_envs, self._root_body,
                                             self.batch.nthread)

@@ -39,14 +39,14 @@ import logging
 import mujoco
 import numpy as np
 
+from frbench.backends.terrain_build import add_to_mjspec
+from frbench.content_cache import cached_bytes, content_key, object_key, source_key
 from frbench.robots.sim_urdf import self_collision_exclusions, sim_robot_file
 from frbench.robots.spec import RobotSpec
 
 
 def build_spec(spec: RobotSpec, terrain, friction: float = 1.0) -> mujoco.MjSpec:
     """An ``MjSpec`` of ``spec`` on ``terrain`` (see the module docstring)."""
-    from frbench.backends.terrain_build import add_to_mjspec
-
     sim = sim_robot_file(spec)
     mj = mujoco.MjSpec.from_file(str(sim.path))
     mj.compiler.fusestatic = False
@@ -146,8 +146,6 @@ def build_model(spec: RobotSpec, terrain, friction: float = 1.0) -> mujoco.MjMod
     The entry (MuJoCo's binary model, exact) is keyed by the spec, its simulation URDF's text, the
     terrain, the friction, the MuJoCo version and the source of the modules that build the model.
     """
-    from frbench.content_cache import cached_bytes, content_key, object_key, source_key
-
     route_warnings()
     sim = sim_robot_file(spec)
     key = content_key(spec, sim.path.read_bytes(), object_key(terrain), float(friction), mujoco.__version__,

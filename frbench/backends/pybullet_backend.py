@@ -24,9 +24,6 @@ import sys
 
 import numpy as np
 
-from frbench.backends.bullet import BulletClient
-from frbench.backends.bullet import pybullet as p
-
 from frbench.backends.base import (
     CONTROL_DT,
     Contacts,
@@ -38,8 +35,11 @@ from frbench.backends.base import (
     divergence_mask,
     summarize_contacts,
 )
+from frbench.backends.bullet import BulletClient, pybullet as p
 from frbench.robots.sim_urdf import self_collision_exclusions, sim_robot_file
 from frbench.robots.spec import RobotSpec
+from frbench.terrains import make_terrain
+
 
 _LOAD_FLAGS = p.URDF_USE_INERTIA_FROM_FILE | p.URDF_USE_SELF_COLLISION | p.URDF_USE_SELF_COLLISION_EXCLUDE_ALL_PARENTS
 
@@ -129,8 +129,6 @@ class PybulletBackend:
 
     def __init__(self, spec: RobotSpec, num_envs: int, terrain=None, variants=None):
         """N simulations of ``spec`` on ``terrain`` (flat if None); ``variants`` as for `MujocoBackend`."""
-        from frbench.terrains import make_terrain
-
         self.spec = spec
         self.num_envs = int(num_envs)
         self.terrain = terrain if terrain is not None else make_terrain("flat", 1, 0)

@@ -13,6 +13,7 @@ from functools import lru_cache
 import numpy as np
 
 from frbench.robots.spec import RobotSpec
+from frbench.terrains import make_terrain
 
 
 @lru_cache(maxsize=32)
@@ -21,8 +22,6 @@ def _self_collision_model(spec: RobotSpec):
     import mujoco
 
     from frbench.backends.mujoco_model import build_model, joint_addresses
-    from frbench.terrains import make_terrain
-
     model = build_model(spec, make_terrain("flat", 1, 0))
     return model, mujoco.MjData(model), joint_addresses(model, spec)[0]
 

@@ -19,6 +19,7 @@ from frbench.errors import FrbenchError, ResultsError
 from frbench.io import atomic_write_text
 from frbench.leaderboard.jsonfile import MAX_RESULTS_BYTES, read_json_object
 from frbench.leaderboard.paths import INDEX, README, RECORDS, SCHEMA
+from frbench.leaderboard.policy_files import check_attachable, read_policy_file, store, stored_problems, stray_files
 from frbench.leaderboard.records import (
     DuplicateRecord,
     Submission,
@@ -32,9 +33,9 @@ from frbench.leaderboard.records import (
     replace_record,
     submission_fields,
 )
-from frbench.leaderboard.policy_files import check_attachable, read_policy_file, store, stored_problems, stray_files
 from frbench.leaderboard.render import render_html, render_markdown
 from frbench.leaderboard.results import check_results
+from frbench.policies.references import split_reference
 from frbench.schemas import SCHEMA_NAMES, schema_text
 
 
@@ -115,8 +116,6 @@ def submit(
     record = build_record(results, fields)
     attached = None
     if policy_file is not None:
-        from frbench.policies.references import split_reference
-
         attached = read_policy_file(policy_file, layout=split_reference(results["config"]["policy"])[1])
         check_attachable(attached, results, os.fspath(policy_file))
         record["policy_file"] = attached.entry()

@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Any, Iterator
 
 from frbench.errors import FrbenchError, ResultsError
-from frbench.io import sha256_text
+from frbench.io import atomic_write_text, sha256_text
 from frbench.leaderboard.jsonfile import MAX_RESULTS_BYTES, canonical_json, pretty_json, read_json_object
 from frbench.leaderboard.paths import RECORDS
 from frbench.leaderboard.results import check_results
@@ -130,8 +130,6 @@ def build_record(results: dict, submission: dict) -> dict:
 
 def replace_record(path: Path, record: dict) -> None:
     """Rewrite an existing record file atomically after checking the new content (its id cannot change)."""
-    from frbench.io import atomic_write_text
-
     check_record(record, file_name=path.name)
     atomic_write_text(path, record_text(record))
     os.chmod(path, 0o644)

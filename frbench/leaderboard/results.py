@@ -31,6 +31,7 @@ from collections import defaultdict
 from typing import Any, Iterable
 
 from frbench.errors import ResultsError
+from frbench.evaluation.intervals import wilson_interval
 from frbench.schemas import SchemaViolation, validate
 from frbench.tasks.protocol import KNOWN_PROTOCOL_VERSIONS, RESULTS_SCHEMA_VERSION
 
@@ -216,8 +217,6 @@ def _check_episodes(results: dict, cells: dict[tuple, int]) -> None:
 
 def _check_summary_counts(index: int, entry: dict, counts: list[int], where: str) -> None:
     """The optional pooled counts and Wilson interval of a summary entry (protocol 1.1) agree with its cells."""
-    from frbench.evaluation.intervals import wilson_interval
-
     for field, value in (("successes", counts[0]), ("episodes", counts[1])):
         if field in entry and entry[field] != value:
             raise ResultsError(f"summary[{index}].{field}: {entry[field]} but the cells of {where} have {value}")

@@ -30,6 +30,7 @@ from typing import Iterable, Mapping, Sequence
 
 import numpy as np
 
+from frbench.errors import FrbenchError
 from frbench.evaluation.intervals import bootstrap_rates, percentile_interval, sim_to_sim_gaps, sorted_cells
 from frbench.tasks.protocol import (
     STANDARD_BACKENDS,
@@ -152,8 +153,6 @@ def record_scores(cells: Sequence[Mapping], track: str) -> dict:
 
 def check_same_protocol(versions: Iterable[str]) -> str | None:
     """The one protocol version of records about to be ranked together; ``FrbenchError`` if they differ."""
-    from frbench.errors import FrbenchError
-
     found = sorted(set(versions))
     if len(found) > 1:
         raise FrbenchError(f"refusing to rank records of protocol versions {', '.join(found)} together: "

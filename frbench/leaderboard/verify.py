@@ -36,9 +36,13 @@ from pathlib import Path
 import numpy as np
 
 from frbench.errors import FrbenchError
+from frbench.evaluation.provenance import frbench_info, library_versions
+from frbench.evaluation.runner import Cell, run_cell
 from frbench.io import sha256_file
 from frbench.leaderboard.policy_files import stored_problems
 from frbench.policies.registry import BUILTIN_POLICIES, SHIPPED_CHECKPOINTS, shipped_checkpoint
+from frbench.robots import get_robot
+from frbench.robots.sim_urdf import sim_robot_file
 from frbench.tasks.protocol import CONTROL_DT, PROTOCOL_VERSION
 
 #: Relative tolerance on continuous episode metrics when library versions differ.
@@ -144,9 +148,6 @@ def _describe(episode: dict) -> str:
 def verify(record: dict, root: Path, *, sample: int = 8, seed: int = 0, tolerance: bool = False,
            progress=None) -> Verification:
     """Re-run ``sample`` of the (already checked) ``record``'s episodes and compare them."""
-    from frbench.evaluation.provenance import library_versions
-    from frbench.evaluation.runner import Cell, run_cell
-
     results = record["results"]
     report = Verification(record["id"], results["protocol_version"], seed)
     episodes = results["episodes"]
@@ -188,9 +189,6 @@ def verify(record: dict, root: Path, *, sample: int = 8, seed: int = 0, toleranc
 
 def _note_robot_changes(results: dict, report: Verification) -> None:
     """Note robots whose URDF differs from the one the record evaluated (its checksum)."""
-    from frbench.robots import get_robot
-    from frbench.robots.sim_urdf import sim_robot_file
-
     for name, entry in sorted(results["robots"].items()):
         sim = sim_robot_file(get_robot(name))
         if sim.source_sha256 != entry["urdf_sha256"]:
@@ -200,8 +198,6 @@ def _note_robot_changes(results: dict, report: Verification) -> None:
 
 def entry_of(report: Verification) -> dict:
     """The record's ``verifications`` item for a passed verification."""
-    from frbench.evaluation.provenance import frbench_info
-
     info = frbench_info()
     return {
         "verified": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, fields, replace
 
 from frbench.errors import FrbenchError
+from frbench.tasks.protocol import CONTROL_DT
 
 
 @dataclass(frozen=True)
@@ -70,8 +71,6 @@ class PlannerConfig:
     @property
     def horizon_steps(self) -> int:
         """Control steps in the horizon."""
-        from frbench.tasks.protocol import CONTROL_DT
-
         return max(2, int(round(self.horizon / CONTROL_DT)))
 
     def as_dict(self) -> dict:

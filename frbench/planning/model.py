@@ -25,6 +25,7 @@ from frbench.backends.base import RobotState
 from frbench.backends.mujoco_model import build_spec, joint_addresses
 from frbench.robots.sim_urdf import sim_robot_file
 from frbench.robots.spec import RobotSpec
+from frbench.tasks.protocol import CONTROL_DT
 
 #: MuJoCo's contact-sensor data bit for "found" (the number of matching contacts).
 _CONTACT_FOUND = 1
@@ -104,8 +105,6 @@ def _sensor(mj: mujoco.MjSpec, kind, objtype, objname: str, refname: str = "") -
 def build_planning_model(spec: RobotSpec, terrain, planning_dt: float) -> PlanningModel:
     """The planning copy of ``spec`` on ``terrain`` with physics step ``planning_dt`` [s] (a divisor of the
     0.02 s control period, at least the robot's own physics step)."""
-    from frbench.tasks.protocol import CONTROL_DT
-
     substeps = int(round(CONTROL_DT / planning_dt))
     if substeps < 1 or abs(substeps * planning_dt - CONTROL_DT) > 1e-9:
         raise ValueError(f"planning_dt: expected a divisor of the control period {CONTROL_DT} s, got {planning_dt}")

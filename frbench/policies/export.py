@@ -18,7 +18,10 @@ import json
 from pathlib import Path
 
 from frbench.errors import PolicyError
-from frbench.policies.contract import sidecar_path
+from frbench.io import atomic_write_bytes, atomic_write_text, check_output_path
+from frbench.policies.contract import EMBEDDED_LAYOUT_KEY, learned_layout, sidecar_path
+from frbench.policies.learned import LearnedPolicy
+from frbench.policies.registry import load_policy
 
 #: Name of the dynamic batch axis of every input and output.
 BATCH_AXIS = "batch"
@@ -35,16 +38,11 @@ def onnx_module(policy):
 
 def export_onnx(policy_path: str, out: Path) -> Path:
     """Write ``out`` (.onnx) and its sidecar `sidecar_path(out)`; returns the ONNX path."""
-    from frbench.io import atomic_write_bytes, atomic_write_text, check_output_path
-
     check_output_path(out, suffixes=(".onnx",))  # before torch is imported or anything loaded
     check_output_path(sidecar_path(out))
     import io
 
     import torch
-
-    from frbench.policies.learned import LearnedPolicy
-    from frbench.policies.registry import load_policy
 
     policy = load_policy(policy_path)
     if not isinstance(policy, LearnedPolicy):
@@ -59,8 +57,6 @@ def export_onnx(policy_path: str, out: Path) -> Path:
     torch.onnx.export(model, inputs, buffer, export_params=True, opset_version=18,
                       input_names=input_names, output_names=output_names, dynamo=False,
                       dynamic_axes={name: {0: BATCH_AXIS} for name in input_names + output_names})
-    from frbench.policies.contract import EMBEDDED_LAYOUT_KEY, learned_layout
-
     layout = learned_layout(policy)
     if [i.name for i in layout.inputs] != input_names:
         raise PolicyError(f"policy {policy_path!r}: its graph inputs {input_names} are not its layout's "

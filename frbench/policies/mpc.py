@@ -25,7 +25,10 @@ import numpy as np
 
 from frbench.errors import FrbenchError, PolicyError
 from frbench.planning.config import PlannerConfig
+from frbench.planning.model import build_planning_model
+from frbench.planning.sampler import Sampler
 from frbench.robots.spec import RobotSpec
+from frbench.terrains import height_at
 
 #: Environment variable with planner-config overrides (``field=value,...``).
 CONFIG_ENV = "FRBENCH_MPC"
@@ -84,9 +87,6 @@ class MpcPolicy:
 
     def reset_episode(self, terrain, seed: int) -> None:
         """Build the planning model of the episodes' ``terrain``; the episodes' generators take ``seed``."""
-        from frbench.planning.model import build_planning_model
-        from frbench.planning.sampler import Sampler
-
         if self.spec is None:
             raise PolicyError("policy 'mpc': reset_episode before reset")
         self.terrain = terrain
@@ -119,8 +119,6 @@ class MpcPolicy:
 
     def _replan(self, i: int) -> None:
         """Replan episode ``i`` from the observed state and queue the next ``replan_steps`` targets."""
-        from frbench.terrains import height_at
-
         state, steps = self._state, self.config.replan_steps
         if not (np.isfinite(state.q[i]).all() and np.isfinite(state.base_pos[i]).all()):
             self.queue[i] = self.queue[i, -1]  # a diverged simulation: hold the last target

@@ -20,6 +20,10 @@ from __future__ import annotations
 from pathlib import Path
 
 from frbench.errors import PolicyError
+from frbench.policies.onnx_policy import load_onnx_policy
+from frbench.policies.python_policy import load_python_policy, parse_python_reference
+from frbench.policies.sb3_policy import is_sb3_zip, load_sb3_policy
+from frbench.policies.torchscript_policy import is_torchscript_archive, load_torchscript_policy
 
 #: What separates a reference from its layout file.
 LAYOUT_SEPARATOR = "?spec="
@@ -40,10 +44,6 @@ def with_layout(reference: str, layout_file: str | Path | None) -> str:
 
 def foreign_kind(reference: str) -> str | None:
     """The kind of policy trained elsewhere that ``reference`` (without a layout file) names, or None."""
-    from frbench.policies.python_policy import parse_python_reference
-    from frbench.policies.sb3_policy import is_sb3_zip
-    from frbench.policies.torchscript_policy import is_torchscript_archive
-
     path = Path(reference)
     if path.suffix.lower() == ".onnx":
         return "onnx"
@@ -65,8 +65,6 @@ def resolve_reference(reference: str, layout_file: str | Path | None = None) -> 
     Raises:
         PolicyError: a missing layout file, or a layout file for a policy that is not trained elsewhere.
     """
-    from frbench.policies.python_policy import parse_python_reference
-
     base, carried = split_reference(reference)
     layout_file = layout_file if layout_file is not None else carried
     parsed = parse_python_reference(base)
@@ -96,17 +94,9 @@ def load_foreign_policy(reference: str):
     if kind == "onnx":
         if not path.is_file():
             raise PolicyError(f"{base}: no such ONNX file")
-        from frbench.policies.onnx_policy import load_onnx_policy
-
         return load_onnx_policy(path, layout_file)
     if kind == "torchscript":
-        from frbench.policies.torchscript_policy import load_torchscript_policy
-
         return load_torchscript_policy(path, layout_file)
     if kind == "sb3":
-        from frbench.policies.sb3_policy import load_sb3_policy
-
         return load_sb3_policy(path, layout_file)
-    from frbench.policies.python_policy import load_python_policy
-
     return load_python_policy(base, layout_file)

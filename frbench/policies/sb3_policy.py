@@ -22,6 +22,8 @@ import numpy as np
 from frbench.errors import PolicyError
 from frbench.policies.contract import Contract, ObservationTerm, PolicyLayout, read_layout
 from frbench.policies.layout_policy import LayoutPolicy, safe_name
+from frbench.tasks.actions import ACTION_SCALE
+from frbench.tasks.observations import observation_bounds
 
 
 def is_sb3_zip(path: Path) -> bool:
@@ -35,8 +37,6 @@ def is_sb3_zip(path: Path) -> bool:
 
 def gym_layout() -> PolicyLayout:
     """The layout of ``frbench/FallRecovery-v1``'s observations and actions."""
-    from frbench.tasks.actions import ACTION_SCALE
-
     terms = tuple(ObservationTerm(name) for name in
                   ("base_angvel", "projected_gravity", "joint_pos", "joint_vel", "previous_target"))
     return PolicyLayout(observation=terms, action_scale=ACTION_SCALE, action_clip=1.0)
@@ -66,8 +66,6 @@ class Sb3Policy(LayoutPolicy):
     def reset(self, spec, num_envs: int) -> None:
         """New episodes; the environment's observation bounds of ``spec``."""
         if self.gym_bounds:
-            from frbench.tasks.observations import observation_bounds
-
             self.bounds = observation_bounds(spec)
         super().reset(spec, num_envs)
 

@@ -46,7 +46,10 @@ from __future__ import annotations
 import numpy as np
 
 from frbench.backends.base import CONTROL_DT
+from frbench.robots.kinematics import link_poses
+from frbench.robots.sim_urdf import sim_robot_file
 from frbench.robots.spec import QUADRUPED_LEGS, RobotSpec
+from frbench.robots.urdf_tree import parse_urdf
 
 FOLD, ROLL_A, ROLL_B, BELLY, STAND, HOLD, TOPPLE = range(7)
 PHASE_NAMES = ("fold", "roll_a", "roll_b", "belly", "stand", "hold", "topple")
@@ -122,10 +125,6 @@ def canonical_frame(spec: RobotSpec) -> tuple[np.ndarray, np.ndarray]:
     the other way (Solo, ANYmal) is mirrored front to back (thigh and calf both
     flipped), which leaves the fold-roll-stand motion unchanged.
     """
-    from frbench.robots.kinematics import link_poses
-    from frbench.robots.sim_urdf import sim_robot_file
-    from frbench.robots.urdf_tree import parse_urdf
-
     tree = parse_urdf(sim_robot_file(spec).path)
     default = np.asarray(spec.default_pose, dtype=float)
     zero = link_poses(tree, {})

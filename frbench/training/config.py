@@ -22,7 +22,10 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Mapping
 
-from frbench.policies.scripted_humanoid import DEFAULT_GATE_PHASES
+from frbench.backends import training_backend_names
+from frbench.policies.scripted_humanoid import DEFAULT_GATE_PHASES, gate_phase_ids
+from frbench.robots import get_robot
+from frbench.robots.morphology import morphology_ranges
 from frbench.terrains import FAMILIES
 from frbench.training.reward_tables import reward_table
 from frbench.training.rewards import RewardConfig
@@ -120,13 +123,9 @@ class TrainEnvConfig:
         """``"quadruped"`` (randomised morphologies, or a named quadruped) or ``"humanoid"``."""
         if not self.robot:
             return "quadruped"
-        from frbench.robots import get_robot
-
         return get_robot(self.robot).kind
 
     def _validate(self) -> None:
-        from frbench.backends import training_backend_names
-
         def need(ok: bool, name: str, expected: str) -> None:
             if not ok:
                 raise ValueError(f"{name} {getattr(self, name)!r}: expected {expected}")
@@ -156,8 +155,6 @@ class TrainEnvConfig:
         need(self.gate_phases == DEFAULT_GATE_PHASES or self.residual_gate, "gate_phases",
              "residual_gate (the phases name where the gate opens)")
         if self.residual_gate:
-            from frbench.policies.scripted_humanoid import gate_phase_ids
-
             try:
                 gate_phase_ids(self.gate_phases)
             except ValueError as exc:
@@ -167,8 +164,6 @@ class TrainEnvConfig:
                 if not low <= high:
                     raise ValueError(f"{name}[{key!r}] ({low}, {high}): expected low <= high")
         if self.morphology_ranges:
-            from frbench.robots.morphology import morphology_ranges
-
             morphology_ranges(dict(self.morphology_ranges))  # ValueError naming an unknown field or a bad range
 
     # ------------------------------------------------------------------ JSON form

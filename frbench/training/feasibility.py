@@ -14,6 +14,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from frbench.backends import make_backend
+from frbench.backends.base import CONTROL_DT, PhysicsParams, RobotState
+from frbench.content_cache import cached_bytes, content_key, source_key
+from frbench.robots.sim_urdf import sim_robot_file
 from frbench.robots.spec import RobotSpec
 
 #: Height [fraction of nominal] a feasible morphology must hold; the success test asks for 0.75.
@@ -29,9 +33,6 @@ def can_stand(spec: RobotSpec, kp: float, kd: float, backend: str = "mujoco") ->
     gains, the backend and the source of the code that simulates it."""
     import json
 
-    from frbench.content_cache import cached_bytes, content_key, source_key
-    from frbench.robots.sim_urdf import sim_robot_file
-
     key = content_key(spec, sim_robot_file(spec).path.read_bytes(), float(kp), float(kd), backend,
                       source_key(__name__, "frbench.backends.base", "frbench.backends.contact_layout",
                                  f"frbench.backends.{backend}_backend", "frbench.backends.mujoco_model"))
@@ -40,9 +41,6 @@ def can_stand(spec: RobotSpec, kp: float, kd: float, backend: str = "mujoco") ->
 
 
 def _stands(spec: RobotSpec, kp: float, kd: float, backend: str) -> bool:
-    from frbench.backends import make_backend
-    from frbench.backends.base import CONTROL_DT, PhysicsParams, RobotState
-
     sim = make_backend(backend, spec, 1)
     try:
         params = PhysicsParams.nominal(spec, 1)

@@ -57,6 +57,7 @@ import numpy as np
 from frbench.backends.base import PhysicsParams
 from frbench.robots import morphology, morphology_urdf
 from frbench.robots.morphology import MorphologyParams
+from frbench.robots.paths import cache_dir
 from frbench.robots.spec import RobotSpec
 
 __all__ = [
@@ -197,8 +198,6 @@ def params_hash(params: MorphologyParams) -> str:
 
 
 def _default_cache_dir() -> Path:
-    from frbench.robots.paths import cache_dir
-
     return cache_dir() / "morphology"
 
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import Callable, Mapping
 
+from frbench.robots.urdf_tree import parse_urdf
 from frbench.training.rewards import DEFAULT_VELOCITY_THRESHOLD, PAPER_WEIGHTS, RewardConfig
 
 MOTION_PENALTY_REASON = (
@@ -100,8 +101,6 @@ def with_joint_velocity_limits(reward: RewardConfig, urdf_path, joint_names) -> 
     ``soft_dof_vel_limit = 0.8`` of the URDF limit. Read literally (0.8 rad/s) the term dominates every
     other reward.
     """
-    from frbench.robots.urdf_tree import parse_urdf
-
     if reward.velocity_threshold != DEFAULT_VELOCITY_THRESHOLD:
         return reward
     joints = parse_urdf(urdf_path).joints
