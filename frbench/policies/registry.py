@@ -18,6 +18,8 @@ from importlib.metadata import entry_points
 from pathlib import Path
 
 from frbench.errors import PolicyError, unknown_name
+from frbench.policies.checkpoint import CHECKPOINT_FORMAT, load_checkpoint_policy, resolve_checkpoint_file
+from frbench.policies.references import load_foreign_policy
 
 ENTRY_POINT_GROUP = "frbench.policies"
 
@@ -90,18 +92,12 @@ def load_policy(name_or_path: str):
         path = shipped_checkpoint(name_or_path)
         if not path.is_file():
             raise PolicyError(f"policy {name_or_path!r}: its checkpoint {path} is not in this installation")
-        from frbench.policies.checkpoint import load_checkpoint_policy
-
         return load_checkpoint_policy(path)
-    from frbench.policies.references import load_foreign_policy
-
     foreign = load_foreign_policy(name_or_path)  # ONNX, TorchScript, Stable-Baselines3 or a Python policy
     if foreign is not None:
         return foreign
     path = Path(name_or_path)
     if path.exists():
-        from frbench.policies.checkpoint import load_checkpoint_policy
-
         return load_checkpoint_policy(path)
     plugins = plugin_policies()
     if name_or_path in plugins:
@@ -125,8 +121,6 @@ def checkpoint_metadata(path: Path) -> dict:
     """
     import pickle
     import zipfile
-
-    from frbench.policies.checkpoint import CHECKPOINT_FORMAT, resolve_checkpoint_file
 
     class _Skeleton(pickle.Unpickler):
         def find_class(self, module: str, name: str):

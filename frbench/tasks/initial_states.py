@@ -27,6 +27,7 @@ from frbench.robots.spec import RobotSpec
 from frbench.robots.urdf_tree import parse_urdf
 from frbench.tasks.protocol import PROTOCOL_VERSION
 from frbench.tasks.start_geometry import StartGeometry
+from frbench.terrains import support_height
 
 FALL_KINDS = ("supine", "prone", "left_side", "right_side", "random")
 #: Probability of each fall kind. Prone starts are rare: from the belly a robot
@@ -142,8 +143,6 @@ def lowest_offset_and_reach(spec: RobotSpec, quat: np.ndarray, q: np.ndarray) ->
 
 def draw_start(spec: RobotSpec, terrain, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
     """One fallen start on ``terrain``: (base_pos (3,), base_quat (4,), q (n_joints,), kind)."""
-    from frbench.terrains import support_height
-
     kind = FALL_KINDS[rng.choice(len(FALL_KINDS), p=FALL_WEIGHTS)]
     if terrain.family == "flat":
         yaw = rng.uniform(-np.pi, np.pi)

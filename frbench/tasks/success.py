@@ -32,7 +32,12 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from frbench.robots.kinematics import _axis_rotation
+from frbench.robots.sim_urdf import sim_robot_file
+from frbench.robots.urdf_tree import parse_urdf
+from frbench.tasks.initial_states import quat_to_matrix
 from frbench.tasks.protocol import CONTROL_DT
+from frbench.terrains import height_at, support_height
 
 MAX_TILT_DEG = 30.0
 MIN_HEIGHT_FRACTION = 0.75
@@ -82,8 +87,6 @@ class StartSurface:
     """
 
     def __init__(self, terrain, start_xy: np.ndarray):
-        from frbench.terrains import support_height
-
         self.terrain = terrain
         self.incline = any(box.rotation()[2, 2] != 1.0 for box in terrain.boxes)
         self.z = np.array([support_height(terrain, xy, START_SURFACE_RADIUS_M) for xy in np.asarray(start_xy)])
@@ -91,8 +94,6 @@ class StartSurface:
     def drop(self, base_xy: np.ndarray, terrain_height: np.ndarray | None = None) -> np.ndarray:
         """(…, N) [m] the start surface's height minus the terrain height beneath ``base_xy`` (…, N, 2); 0 on an
         incline. ``terrain_height`` (…, N) [m]: ``height_at(terrain, base_xy)`` when the caller has it already."""
-        from frbench.terrains import height_at
-
         if self.incline:
             return np.zeros(np.shape(base_xy)[:-1])
         return self.z - (height_at(self.terrain, base_xy) if terrain_height is None else terrain_height)
@@ -107,9 +108,6 @@ class TorsoFrame:
     """
 
     def __init__(self, spec, link: str = "torso_link"):
-        from frbench.robots.sim_urdf import sim_robot_file
-        from frbench.robots.urdf_tree import parse_urdf
-
         tree = parse_urdf(sim_robot_file(spec).path)
         chain, child = [], link
         while child != tree.root:
@@ -121,9 +119,6 @@ class TorsoFrame:
 
     def gravity_z(self, base_quat: np.ndarray, q: np.ndarray) -> np.ndarray:
         """(N,) projected gravity z of the torso: −(world z of the torso's z axis); base_quat (N, 4) wxyz, q (N, n)."""
-        from frbench.robots.kinematics import _axis_rotation
-        from frbench.tasks.initial_states import quat_to_matrix
-
         out = np.empty(len(q))
         for i in range(len(q)):
             rotation = quat_to_matrix(base_quat[i])
