@@ -21,8 +21,9 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from frbench.backends import make_backend
-from frbench.backends.base import CONTROL_DT, RobotState
+from frbench.backends.base import RobotState
 from frbench.robot_checks.lookup import get_robot
+from frbench.robot_checks.standing import hold_default_pose
 from frbench.robots import ground_truth
 from frbench.robots.builtin import BUILTIN_ROBOTS
 from frbench.robots.humanoid_gains import support
@@ -168,16 +169,8 @@ def static_support(spec: RobotSpec) -> dict:
 
 def stand_test(spec: RobotSpec, backend_name: str, seconds: float = STAND_SECONDS) -> dict:
     """Hold the default pose with the PD for ``seconds`` on flat ground; report height and vertical force."""
-    backend = make_backend(backend_name, spec, 1)
-    try:
-        backend.reset(np.arange(1), RobotState.standing(spec, 1))
-        targets = np.asarray(spec.default_pose)[None]
-        for _ in range(int(round(seconds / CONTROL_DT))):
-            backend.step(targets)
-        state, contacts = backend.state(), backend.contacts()
-        diverged = bool(backend.diverged[0])
-    finally:
-        backend.close()
+    held = hold_default_pose(spec, backend_name, seconds)
+    state, contacts, diverged = held.state, held.contacts, held.diverged
     weight = ground_truth.total_mass(spec) * 9.81
     height = float(state.base_pos[0, 2]) if np.isfinite(state.base_pos[0, 2]) else float("nan")
     force_z = float(contacts.link_force[0, :, 2].sum())

@@ -14,11 +14,12 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from dataclasses import dataclass
 
 import numpy as np
 
 from frbench.backends import make_backend
-from frbench.backends.base import CONTROL_DT, RobotState
+from frbench.backends.base import CONTROL_DT, Contacts, RobotState
 from frbench.io import atomic_write_text, sha256_text
 from frbench.robots.paths import cache_dir
 from frbench.robots.sim_urdf import prune_cache, sim_robot_file
@@ -30,23 +31,40 @@ BACKEND_NAMES = ("mujoco", "pybullet")
 MEASURE_VERSION = 1
 
 
-def settle(spec: RobotSpec, backend_name: str, seconds: float = SETTLE_SECONDS) -> dict:
-    """Hold the default pose on flat ground; the root height [m] averaged at the end, and divergence."""
+@dataclass(frozen=True)
+class HeldPose:
+    """The end of `hold_default_pose`: root heights [m] of the last steps (T,), the final `RobotState` and
+    `Contacts` (one simulation) and whether the simulation diverged."""
+
+    heights: tuple[float, ...]
+    state: RobotState
+    contacts: Contacts
+    diverged: bool
+
+
+def hold_default_pose(spec: RobotSpec, backend_name: str, seconds: float, tail_steps: int = 1) -> HeldPose:
+    """Start ``spec`` upright at its default pose over flat ground in ``backend_name`` and hold the pose with its PD
+    for ``seconds``; the root height of each of the last ``tail_steps`` control steps. The standing height's
+    measurement (`settle`) and the check's standing test (`frbench.robot_checks.check.stand_test`) both run it."""
     backend = make_backend(backend_name, spec, 1)
     steps = int(round(seconds / CONTROL_DT))
-    tail = max(1, int(round(AVERAGE_SECONDS / CONTROL_DT)))
     heights = []
     try:
         backend.reset(np.arange(1), RobotState.standing(spec, 1))
         targets = np.asarray(spec.default_pose)[None]
         for step in range(steps):
             backend.step(targets)
-            if step >= steps - tail:
+            if step >= steps - tail_steps:
                 heights.append(float(backend.state().base_pos[0, 2]))
-        diverged = bool(backend.diverged[0])
+        return HeldPose(tuple(heights), backend.state(), backend.contacts(), bool(backend.diverged[0]))
     finally:
         backend.close()
-    height = float(np.mean(heights))
+
+
+def settle(spec: RobotSpec, backend_name: str, seconds: float = SETTLE_SECONDS) -> dict:
+    """Hold the default pose on flat ground; the root height [m] averaged at the end, and divergence."""
+    held = hold_default_pose(spec, backend_name, seconds, max(1, int(round(AVERAGE_SECONDS / CONTROL_DT))))
+    height, diverged = float(np.mean(held.heights)), held.diverged
     return {"height": height if np.isfinite(height) else float("nan"), "diverged": diverged or not np.isfinite(height)}
 
 
