@@ -65,6 +65,7 @@ class DistillConfig:
     learning_rate: float = 1e-3
     weight_decay: float = 0.0
     input_noise: float = 0.0  # training: input noise, a fraction of each input's spread in the dataset
+    blind_to_previous_action: bool = False  # training: the normaliser hides a_{t−1} from the student
     seed: int = 0
 
     def __post_init__(self):
@@ -249,7 +250,8 @@ def _write_progress(run: Path, config: DistillConfig, trained: dict) -> dict:
 
 
 #: Fields that change only the student's training: a resumed run may change them (its students are retrained).
-TRAINING_FIELDS = ("rounds", "hidden", "epochs", "minibatch", "learning_rate", "weight_decay", "input_noise")
+TRAINING_FIELDS = ("rounds", "hidden", "epochs", "minibatch", "learning_rate", "weight_decay", "input_noise",
+                   "blind_to_previous_action")
 
 
 def _training_settings(config: DistillConfig) -> dict:

@@ -62,6 +62,22 @@ def student_actions(actor, o_t: np.ndarray, history: np.ndarray) -> np.ndarray:
         return actor(_inputs(o_t, history)).numpy().astype(np.float64)
 
 
+#: Spread [rad] the normaliser gives the previous-action inputs of a student blind to them: they normalise to ~0.
+BLIND_SPREAD = 1e6
+
+
+def _blind_previous_action(normalizer, frame: int, num_actions: int) -> None:
+    """Make the normaliser map every a_{t−1} input (the last ``num_actions`` of each ``frame``-wide o_t) to ~0:
+    the student cannot copy its previous action (the teacher's, in the data: copying it is imitation's
+    classic shortcut, which fails once the student's own actions come back)."""
+    import torch
+
+    columns = torch.arange(normalizer._mean.shape[-1]) % frame >= frame - num_actions
+    normalizer._mean[:, columns] = 0.0
+    normalizer._var[:, columns] = BLIND_SPREAD ** 2
+    normalizer._std[:, columns] = BLIND_SPREAD
+
+
 def train_student(obs: np.ndarray, history: np.ndarray, actions: np.ndarray, config, round_index: int):
     """A new actor fitted to (obs (M, F), history (M, H·F)) → teacher actions (M, J) [rad] by MSE with Adam:
     ``config.epochs`` passes in minibatches of ``config.minibatch``, seeded by (``config.seed``, round).
@@ -76,8 +92,10 @@ def train_student(obs: np.ndarray, history: np.ndarray, actions: np.ndarray, con
     inputs = _inputs(obs, history)
     targets = torch.as_tensor(actions, dtype=torch.float32)
     actor.obs_normalizer.update(torch.cat([inputs["policy"], inputs["history"]], dim=-1))
-    actor.eval()  # the normaliser keeps the dataset's statistics
     spread = actor.obs_normalizer.std * config.input_noise
+    if config.blind_to_previous_action:
+        _blind_previous_action(actor.obs_normalizer, obs.shape[1], actions.shape[1])
+    actor.eval()  # the normaliser keeps the dataset's statistics
     width = inputs["policy"].shape[1]
     optimizer = torch.optim.AdamW(actor.parameters(), lr=config.learning_rate, weight_decay=config.weight_decay)
     loss_sum = 0.0
@@ -121,10 +139,10 @@ def save_student(path: Path, actor, config, round_index: int, dataset: dict) -> 
                    f"{config.robot} {config.terrain} level-{config.level} episodes ({dataset['samples']} samples, "
                    f"{dataset['cpu_s'] / 60:.0f} teacher CPU min) in {' and '.join(config.simulators)}")
     data = {"format": CHECKPOINT_FORMAT, "method": METHOD, "config_json": json.dumps(record, sort_keys=True),
-            "actor_state_dict": actor.state_dict(), "action_scale": 1.0, "history": config.frames,
+            "actor_state_dict": dict(actor.state_dict()), "action_scale": 1.0, "history": config.frames,
             "num_actions": spec.n_joints, "robot_kind": spec.kind, "env_steps": dataset["samples"],
             "wall_s": None, "description": description}
     buffer = io.BytesIO()
-    torch.save(data, buffer)
+    torch.save(data, buffer)  # a plain dict of tensors: `frbench policies` reads it without torch
     atomic_write_bytes(path, buffer.getvalue())
     atomic_write_text(Path(path).with_suffix(".config.json"), json.dumps(record, indent=1, sort_keys=True) + "\n")
