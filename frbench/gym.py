@@ -55,10 +55,17 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from frbench.terrains import height_at
+from frbench.render import SIMULATOR_LABELS, SceneRenderer, caption, use_headless_gl
+from frbench.robot_checks.lookup import get_robot
 from frbench.tasks.actions import ACTION_SCALE, DirectTargets
+from frbench.tasks.core_env import CoreEnv
 from frbench.tasks.observations import observation_bounds
+from frbench.tasks.protocol import CONTROL_DT, EPISODE_SECONDS
+from frbench.tasks.recovery import EPISODE_STEPS
+from frbench.terrains import height_at, make_terrain
 from frbench.training.action_hold import HeldAction
+from frbench.training.reward_tables import reward_table
+from frbench.training.rewards import RewardConfig
 from frbench.training.step_reward import HeadPoints, StepReward
 
 ENV_ID = "frbench/FallRecovery-v1"
@@ -71,8 +78,6 @@ REWARD_PRESETS = ("training", "paper")
 def reward_config(reward, kind: str):
     """The `RewardConfig` of preset ``reward`` (``"training"``: the trainer's table for robots of ``kind``;
     ``"paper"``: the paper's) or ``reward`` itself if it is one."""
-    from frbench.training.reward_tables import reward_table
-    from frbench.training.rewards import RewardConfig
 
     if isinstance(reward, RewardConfig):
         return reward
@@ -93,19 +98,14 @@ class FallRecoveryVectorEnv(VectorEnv):
                  level: int = 1, terrain_seed: int = 0, reward="training", action_scale: float = ACTION_SCALE,
                  render_mode: str | None = None, render_size: tuple[int, int] = (640, 480),
                  max_episode_steps: int | None = None):
-        from frbench.robot_checks.lookup import get_robot
-        from frbench.tasks.recovery import EPISODE_STEPS
-        from frbench.terrains import make_terrain
 
         if max_episode_steps not in (None, EPISODE_STEPS):
             raise ValueError(f"max_episode_steps={max_episode_steps}: the protocol's episodes last {EPISODE_STEPS} steps")
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode={render_mode!r}: expected None or 'rgb_array'")
         if render_mode is not None:
-            from frbench.render import use_headless_gl
 
             use_headless_gl()  # before the simulator imports mujoco
-        from frbench.tasks.core_env import CoreEnv
 
         self.spec_robot = spec = get_robot(robot)
         self.num_envs, self.backend_name, self.render_mode, self.render_size = num_envs, backend, render_mode, render_size
@@ -188,9 +188,6 @@ class FallRecoveryVectorEnv(VectorEnv):
 
     def render_frame(self, row: int = 0) -> np.ndarray:
         """An RGB image (H, W, 3) uint8 of environment ``row`` now, captioned with time, success and simulator."""
-        from frbench.backends.base import CONTROL_DT
-        from frbench.render import SIMULATOR_LABELS, SceneRenderer, caption
-
         if self._renderer is None:
             self._renderer = SceneRenderer(self.spec_robot, self.terrain, *self.render_size)
         s = self.core.state
@@ -261,8 +258,6 @@ def _first_row(values: dict[str, np.ndarray]) -> dict:
 
 def register_envs() -> None:
     """Register ``frbench/FallRecovery-v1`` (idempotent)."""
-    from frbench.tasks.protocol import CONTROL_DT, EPISODE_SECONDS
-
     if ENV_ID not in gymnasium.registry:
         gymnasium.register(
             id=ENV_ID,

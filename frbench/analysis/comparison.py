@@ -18,6 +18,8 @@ from collections import defaultdict
 
 import numpy as np
 
+from frbench.terrains import FAMILIES
+
 #: Level-10 success [%] that the paper's text states (Sec. "Comparison", the paragraph on its comparison
 #: figure); derived entries are FR-Net's number minus the stated difference. "< 45": "alternatives fall
 #: below 45 %"; a range: "outperforms DreamRiser by 8-12 %".
@@ -40,8 +42,6 @@ def _method_of(name: str) -> str | None:
 
 def _families(results: list[dict]) -> list[str]:
     """The families present in ``results``, in frbench's order."""
-    from frbench.terrains import FAMILIES
-
     seen = {c["terrain"] for data in results for c in data["cells"]}
     return [f for f in FAMILIES if f in seen] + sorted(seen - set(FAMILIES))
 

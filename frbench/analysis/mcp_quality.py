@@ -15,7 +15,13 @@ from pathlib import Path
 
 import numpy as np
 
+from frbench.evaluation.episodes import run_episodes
+from frbench.io import atomic_write_text
+from frbench.policies.registry import load_policy
+from frbench.robots import ground_truth
 from frbench.robots.spec import QUADRUPED_MASS_GROUPS
+from frbench.tasks.initial_states import draw_starts
+from frbench.terrains import make_terrain
 
 
 def _estimates(policy) -> tuple[np.ndarray, np.ndarray]:
@@ -31,12 +37,6 @@ def _estimates(policy) -> tuple[np.ndarray, np.ndarray]:
 
 def evaluate_mcp(policy_path: str, specs, episodes: int = 8, backend: str = "mujoco", seed: int = 0) -> dict:
     """Per robot: mean |mass error| per group [kg] and contact accuracy per group, plus one episode's traces."""
-    from frbench.evaluation.episodes import run_episodes
-    from frbench.policies.registry import load_policy
-    from frbench.robots import ground_truth
-    from frbench.tasks.initial_states import draw_starts
-    from frbench.terrains import make_terrain
-
     policy = load_policy(policy_path)
     if getattr(policy.actor, "estimator", None) is None or not policy.actor.estimator_cfg.mass:
         raise ValueError(f"{policy_path}: the policy has no mass/contact estimator")
@@ -100,8 +100,6 @@ def draw_heatmap(traces: dict, path: Path) -> None:
 
 def write_report(result: dict, out_dir: Path) -> tuple[Path, Path]:
     """``mcp_quality.json`` and ``mcp_heatmap.png`` in ``out_dir``."""
-    from frbench.io import atomic_write_text
-
     out_dir.mkdir(parents=True, exist_ok=True)
     json_path, png_path = out_dir / "mcp_quality.json", out_dir / "mcp_heatmap.png"
     atomic_write_text(json_path, json.dumps(result["robots"], indent=1) + "\n")

@@ -18,6 +18,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from frbench.evaluation.episodes import run_episodes
+from frbench.policies.registry import load_policy
+from frbench.robot_checks.lookup import get_robot
+from frbench.tasks.initial_states import draw_starts
+from frbench.terrains import make_terrain
+
 
 @dataclass
 class StandingTally:
@@ -63,12 +69,6 @@ class StandingTally:
 def standing_analysis(policy_reference: str, robot: str, backends=("mujoco", "pybullet"), terrain: str = "flat",
                       level: int = 1, seeds=(0, 1), episodes: int = 8) -> dict[str, dict]:
     """Per backend, the `StandingTally` summary of ``episodes`` × ``seeds`` episodes of one cell."""
-    from frbench.evaluation.episodes import run_episodes
-    from frbench.policies.registry import load_policy
-    from frbench.robot_checks.lookup import get_robot
-    from frbench.tasks.initial_states import draw_starts
-    from frbench.terrains import make_terrain
-
     spec = get_robot(robot)
     policy = load_policy(policy_reference)
     names = tuple(g.name for g in spec.contact_groups)

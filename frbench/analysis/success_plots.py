@@ -17,6 +17,7 @@ import numpy as np
 
 from frbench.errors import FrbenchError
 from frbench.evaluation.intervals import wilson_interval
+from frbench.leaderboard.board import read_results
 
 SERIES_KEYS = ("robot", "policy")
 
@@ -24,7 +25,6 @@ SERIES_KEYS = ("robot", "policy")
 def load_results(paths: list[Path]) -> list[dict]:
     """The results JSON of each path, read and checked as ``frbench submit`` does (`frbench.leaderboard.board.read_results`:
     schema, self-consistency, known protocol); an error is one line naming the file and the field."""
-    from frbench.leaderboard.board import read_results
 
     return [read_results(path) for path in paths]
 

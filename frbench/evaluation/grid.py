@@ -14,11 +14,18 @@ import os
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 
+from frbench.backends import BACKENDS
 from frbench.errors import FrbenchError, unknown_name
+from frbench.evaluation.provenance import frbench_info, library_versions
 from frbench.evaluation.results import aggregate_cells, sim_to_sim, summarize
 from frbench.evaluation.runner import Cell, run_cell
 from frbench.interrupts import children_ignore_sigint, terminate_pool
+from frbench.io import sha256_file
+from frbench.policies.registry import load_policy
+from frbench.robots import get_robot
+from frbench.robots.sim_urdf import sim_robot_file
 from frbench.tasks.protocol import PROTOCOL_VERSION, RESULTS_SCHEMA_VERSION
+from frbench.terrains import FAMILIES
 
 
 #: Where the cells run: a local process pool, or Ray tasks (`frbench.evaluation.ray_executor`).
@@ -52,11 +59,6 @@ class EvaluationRequest:
 
 def validate(request: EvaluationRequest):
     """Resolve and check every name and number before anything runs; returns the policy."""
-    from frbench.backends import BACKENDS
-    from frbench.policies.registry import load_policy
-    from frbench.robots import get_robot
-    from frbench.terrains import FAMILIES
-
     if request.executor not in EXECUTORS:
         raise unknown_name("executor", request.executor, EXECUTORS)
 
@@ -134,11 +136,6 @@ def build_results(request: EvaluationRequest, policy, episodes: list[dict], code
     ``code``: `frbench_info()` taken when the episodes started (None: now); a long evaluation records the
     commit it ran, not one made while it ran.
     """
-    from frbench.evaluation.provenance import frbench_info, library_versions
-    from frbench.io import sha256_file
-    from frbench.robots import get_robot
-    from frbench.robots.sim_urdf import sim_robot_file
-
     robots = {}
     for name in request.robots:
         spec = get_robot(name)

@@ -27,7 +27,7 @@ import os
 from collections.abc import Callable
 
 from frbench.errors import FrbenchError
-from frbench.evaluation.runner import Cell
+from frbench.evaluation.runner import Cell, run_cell
 
 #: Times a cell is run again after its worker died before the grid fails.
 MAX_RETRIES = 3
@@ -50,7 +50,6 @@ def _run_cell_in_worker(cell: Cell, policy_reference: str, noise: bool, driver_c
     os.environ["FRBENCH_MUJOCO_THREADS"] = "1"
     if os.path.isdir(driver_cwd) and os.getcwd() != driver_cwd:
         os.chdir(driver_cwd)
-    from frbench.evaluation.runner import run_cell
 
     return run_cell(cell, policy_reference, noise)
 

@@ -14,6 +14,10 @@ from functools import lru_cache
 import numpy as np
 
 from frbench.evaluation.episodes import run_episodes
+from frbench.policies.registry import load_policy
+from frbench.robot_checks.lookup import get_robot
+from frbench.tasks.initial_states import draw_starts
+from frbench.terrains import make_terrain
 
 
 @dataclass(frozen=True)
@@ -34,8 +38,6 @@ class Cell:
 
 @lru_cache(maxsize=4)
 def _policy(reference: str):
-    from frbench.policies.registry import load_policy
-
     return load_policy(reference)
 
 
@@ -54,10 +56,6 @@ def _one_torch_thread() -> None:
 
 def run_cell(cell: Cell, policy_reference: str, noise: bool = False) -> list[dict]:
     """Run the cell's episodes with the policy (`run_episodes`); one record per episode."""
-    from frbench.robot_checks.lookup import get_robot
-    from frbench.tasks.initial_states import draw_starts
-    from frbench.terrains import make_terrain
-
     spec = get_robot(cell.robot)
     policy = _policy(policy_reference)
     _one_torch_thread()
