@@ -23,7 +23,7 @@ import numpy as np
 from frbench.backends import make_backend
 from frbench.backends.base import RobotState
 from frbench.robot_checks.lookup import get_robot
-from frbench.robot_checks.standing import hold_default_pose
+from frbench.backends.hold import hold_default_pose
 from frbench.robots import ground_truth
 from frbench.robots.builtin import BUILTIN_ROBOTS
 from frbench.robots.humanoid_gains import support

@@ -14,12 +14,11 @@ from __future__ import annotations
 
 import dataclasses
 import json
-from dataclasses import dataclass
 
 import numpy as np
 
-from frbench.backends import make_backend
-from frbench.backends.base import CONTROL_DT, Contacts, RobotState
+from frbench.backends.base import CONTROL_DT
+from frbench.backends.hold import hold_default_pose
 from frbench.io import atomic_write_text, sha256_text
 from frbench.robots.paths import cache_dir
 from frbench.robots.sim_urdf import prune_cache, sim_robot_file
@@ -29,36 +28,6 @@ SETTLE_SECONDS = 2.0
 AVERAGE_SECONDS = 0.2
 BACKEND_NAMES = ("mujoco", "pybullet")
 MEASURE_VERSION = 1
-
-
-@dataclass(frozen=True)
-class HeldPose:
-    """The end of `hold_default_pose`: root heights [m] of the last steps (T,), the final `RobotState` and
-    `Contacts` (one simulation) and whether the simulation diverged."""
-
-    heights: tuple[float, ...]
-    state: RobotState
-    contacts: Contacts
-    diverged: bool
-
-
-def hold_default_pose(spec: RobotSpec, backend_name: str, seconds: float, tail_steps: int = 1) -> HeldPose:
-    """Start ``spec`` upright at its default pose over flat ground in ``backend_name`` and hold the pose with its PD
-    for ``seconds``; the root height of each of the last ``tail_steps`` control steps. The standing height's
-    measurement (`settle`) and the check's standing test (`frbench.robot_checks.check.stand_test`) both run it."""
-    backend = make_backend(backend_name, spec, 1)
-    steps = int(round(seconds / CONTROL_DT))
-    heights = []
-    try:
-        backend.reset(np.arange(1), RobotState.standing(spec, 1))
-        targets = np.asarray(spec.default_pose)[None]
-        for step in range(steps):
-            backend.step(targets)
-            if step >= steps - tail_steps:
-                heights.append(float(backend.state().base_pos[0, 2]))
-        return HeldPose(tuple(heights), backend.state(), backend.contacts(), bool(backend.diverged[0]))
-    finally:
-        backend.close()
 
 
 def settle(spec: RobotSpec, backend_name: str, seconds: float = SETTLE_SECONDS) -> dict:

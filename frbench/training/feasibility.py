@@ -12,10 +12,8 @@ nominal height above flat ground, on its feet only, for `STAND_SECONDS`.
 
 from __future__ import annotations
 
-import numpy as np
-
-from frbench.backends import make_backend
-from frbench.backends.base import CONTROL_DT, PhysicsParams, RobotState
+from frbench.backends.base import PhysicsParams
+from frbench.backends.hold import hold_default_pose
 from frbench.content_cache import cached_bytes, content_key, source_key
 from frbench.robots.sim_urdf import sim_robot_file
 from frbench.robots.spec import RobotSpec
@@ -34,25 +32,15 @@ def can_stand(spec: RobotSpec, kp: float, kd: float, backend: str = "mujoco") ->
     import json
 
     key = content_key(spec, sim_robot_file(spec).path.read_bytes(), float(kp), float(kd), backend,
-                      source_key(__name__, "frbench.backends.base", "frbench.backends.contact_layout",
+                      source_key(__name__, "frbench.backends.hold", "frbench.backends.base", "frbench.backends.contact_layout",
                                  f"frbench.backends.{backend}_backend", "frbench.backends.mujoco_model"))
     return cached_bytes("feasibility", key, ".json",
                         lambda: json.dumps(_stands(spec, kp, kd, backend)).encode(), lambda data: bool(json.loads(data)))
 
 
 def _stands(spec: RobotSpec, kp: float, kd: float, backend: str) -> bool:
-    sim = make_backend(backend, spec, 1)
-    try:
-        params = PhysicsParams.nominal(spec, 1)
-        params.kp[:], params.kd[:] = kp, kd
-        sim.set_params(params)
-        sim.reset(np.arange(1), RobotState.standing(spec, 1))
-        targets = np.asarray(spec.default_pose)[None]
-        for _ in range(int(round(STAND_SECONDS / CONTROL_DT))):
-            sim.step(targets)
-        height = float(sim.state().base_pos[0, 2])
-        feet_only = not sim.contacts().group_contact[0].any()
-        diverged = bool(sim.diverged[0])
-    finally:
-        sim.close()
-    return feet_only and not diverged and height >= MIN_HEIGHT_FRACTION * spec.nominal_height
+    params = PhysicsParams.nominal(spec, 1)
+    params.kp[:], params.kd[:] = kp, kd
+    held = hold_default_pose(spec, backend, STAND_SECONDS, params=params)
+    feet_only = not held.contacts.group_contact[0].any()
+    return feet_only and not held.diverged and float(held.state.base_pos[0, 2]) >= MIN_HEIGHT_FRACTION * spec.nominal_height
