@@ -18,9 +18,10 @@ A run folder holds:
 * ``progress.json``: per round the dataset size (episodes, samples), its CPU cost [s], the successes of
   the acting policy (per simulator and start kind) and the training loss.
 
-A killed run resumes where it stopped: batches whose shards all exist are not rerun, and a round's
-student is not retrained unless the training settings (`TRAINING_FIELDS`) changed. Batches run in
-``jobs`` processes.
+A killed run resumes where it stopped: batches whose shards all exist are not rerun. When the training
+settings (`TRAINING_FIELDS`) change on resume, only the students still to act (the last round with data,
+and the final one) are retrained; earlier ones stay as the students that collected the next round.
+Batches run in ``jobs`` processes.
 """
 
 from __future__ import annotations
@@ -279,7 +280,9 @@ def run_distillation(run: Path, config: DistillConfig, jobs: int = 1, log=print)
     for r in range(config.rounds):
         _collect_round(run, config, r, jobs, log)
         checkpoint = run / "checkpoints" / f"round{r}.pt"
-        if not checkpoint.is_file() or trained.get(r, {}).get("settings") != _training_settings(config):
+        stale = trained.get(r, {}).get("settings") != _training_settings(config)
+        # a student whose successor round is complete is kept as it was: it collected that round's data
+        if not checkpoint.is_file() or (stale and (r == config.rounds - 1 or _pending(run, config, r + 1))):
             obs, history, actions, metas = load_rounds(run, r)
             cpu = time.process_time()
             actor, loss = train_student(obs, history, actions, config, r)

@@ -86,6 +86,7 @@ def train_student(obs: np.ndarray, history: np.ndarray, actions: np.ndarray, con
     weights by ``config.weight_decay``. Returns (actor, last epoch's mean MSE [rad²])."""
     import torch
 
+    torch.set_num_threads(1)  # small minibatches: one thread is fastest, and fair to a shared machine
     torch.manual_seed(config.seed * 1000 + round_index)
     generator = torch.Generator().manual_seed(config.seed * 1000 + round_index)
     actor = _new_actor(obs.shape[1], config.frames, actions.shape[1], config.hidden)

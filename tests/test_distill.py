@@ -1,0 +1,124 @@
+"""`frbench distill` (DAgger of mpc into a proprioceptive MLP) on a tiny budget, and the shipped distilled policy."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from frbench.cli import main
+from frbench.evaluation.episodes import run_episodes
+from frbench.policies.checkpoint import read_checkpoint
+from frbench.policies.registry import (checkpoint_metadata, describe_checkpoint, load_policy, policy_names,
+                                      shipped_checkpoint)
+from frbench.robots import get_robot
+from frbench.tasks.initial_states import draw_starts
+from frbench.terrains import make_terrain
+from frbench.training import distill
+from frbench.training.distill import DistillConfig, run_distillation
+from frbench.training.distill_data import load_rounds, read_meta, shard_path
+from frbench.training.distill_student import build_actor, student_actions
+
+#: One 6-step MuJoCo episode per round, a 4-sample planner, 2 training epochs: about a second per round.
+TINY = DistillConfig(teacher_settings="samples=4,horizon=0.1,knots=2", simulators=("mujoco",), rounds=2,
+                     episodes_per_round=1, batch=1, steps=6, frames=2, hidden=(16, 16), epochs=2)
+
+
+def _weights(path):
+    return read_checkpoint(path)["actor_state_dict"]
+
+
+def test_dagger_is_deterministic_and_resumes(tmp_path, monkeypatch):
+    whole = run_distillation(tmp_path / "a", TINY, log=lambda line: None)
+    assert [r["episodes"] for r in whole["rounds"]] == [1, 1]
+    assert whole["dataset"]["samples"] == 12 and whole["dataset"]["episodes"] == 2
+    assert whole["rounds"][0]["teacher"]["episodes"] == 1 and whole["rounds"][1]["student"]["episodes"] == 1
+    assert whole["rounds"][1]["training"]["samples"] == 12
+    obs, history, actions, metas = load_rounds(tmp_path / "a", 1)
+    assert obs.shape == (12, 6 + 3 * 29) and history.shape == (12, 2 * obs.shape[1]) and actions.shape == (12, 29)
+    assert np.isfinite(actions).all() and np.abs(actions).max() > 0.0
+    assert [m["acted_by"] for m in metas] == ["teacher", "student"]
+
+    # the same run in two goes: round 0, then round 1 resumed without redoing round 0's batch
+    run_distillation(tmp_path / "b", DistillConfig(**{**TINY.__dict__, "rounds": 1}), log=lambda line: None)
+    first = shard_path(tmp_path / "b", 0, 0, 0).stat().st_mtime_ns
+    calls = []
+    real = distill.collect_batch
+    monkeypatch.setattr(distill, "collect_batch", lambda *a: calls.append(a[2:]) or real(*a))
+    run_distillation(tmp_path / "b", TINY, log=lambda line: None)
+    assert calls == [(1, 0)] and shard_path(tmp_path / "b", 0, 0, 0).stat().st_mtime_ns == first
+    for r in (0, 1):
+        a, b = _weights(tmp_path / "a" / "checkpoints" / f"round{r}.pt"), _weights(tmp_path / "b" / "checkpoints" / f"round{r}.pt")
+        assert all(torch.equal(a[k], b[k]) for k in a)
+    with np.load(shard_path(tmp_path / "a", 1, 0, 0)) as x, np.load(shard_path(tmp_path / "b", 1, 0, 0)) as y:
+        assert np.array_equal(x["actions"], y["actions"]) and np.array_equal(x["obs"], y["obs"])
+    assert read_meta(shard_path(tmp_path / "a", 1, 0, 0))["start_seed"] == 2000
+
+
+def test_resume_with_other_settings_is_refused(tmp_path):
+    run_distillation(tmp_path, DistillConfig(**{**TINY.__dict__, "rounds": 1}), log=lambda line: None)
+    status = main(["distill", "--out", str(tmp_path), "--rounds", "1", "--episodes-per-round", "1", "--steps", "6",
+                   "--simulators", "mujoco", "--teacher-settings", "samples=4,horizon=0.1,knots=2", "--batch", "1"])
+    assert status == 2
+    assert main(["distill", "--out", str(tmp_path / "x"), "--teacher", "keyframe"]) == 2
+    assert main(["distill", "--out", str(tmp_path / "x"), "--teacher-settings", "samples"]) == 2
+    assert not (tmp_path / "x").exists()
+
+
+def test_checkpoint_loads_as_learned_policy_with_the_students_inputs(tmp_path):
+    """The saved student acts through `LearnedPolicy` exactly as it acted during DAgger."""
+    run_distillation(tmp_path, DistillConfig(**{**TINY.__dict__, "rounds": 1}), log=lambda line: None)
+    path = tmp_path / "checkpoints" / "round0.pt"
+    policy, actor = load_policy(str(path)), build_actor(read_checkpoint(path))
+    assert policy.name == "mpc-distill-round0" and json.loads((tmp_path / "checkpoints" / "round0.config.json")
+                                                               .read_text())["method"] == "mpc-distill"
+    spec = get_robot("g1")
+    policy.reset(spec, 2)
+    tracker = distill.ObservationHistory(spec.default_pose, 2, TINY.frames)
+    rng = np.random.default_rng(0)
+    for _ in range(4):
+        obs = {"base_angvel": rng.normal(size=(2, 3)), "projected_gravity": rng.normal(size=(2, 3)),
+               "joint_pos": rng.normal(size=(2, 29)), "joint_vel": rng.normal(size=(2, 29)),
+               "previous_action": rng.normal(size=(2, 29))}
+        o_t, history = tracker.observe(obs)
+        mine = student_actions(actor, o_t, history)
+        tracker.acted(mine)
+        np.testing.assert_allclose(policy.act(obs), np.asarray(spec.default_pose) + tracker.previous, atol=1e-5)
+
+
+@pytest.mark.parametrize("simulator", ["mujoco", "pybullet"])
+def test_shipped_distilled_policy_runs_in_both_simulators(simulator):
+    assert shipped_checkpoint("mpc-distilled-g1").is_file() and "mpc-distilled-g1" in policy_names()
+    description = describe_checkpoint(checkpoint_metadata(shipped_checkpoint("mpc-distilled-g1")))
+    assert "distilled from mpc" in description and "episodes" in description
+    policy = load_policy("mpc-distilled-g1")
+    spec, terrain = get_robot("g1"), make_terrain("flat", 1, 0)
+    assert policy.supports(spec) and not policy.supports(get_robot("go2"))
+    seen = []
+    run_episodes(spec, simulator, terrain, draw_starts(spec, terrain, "flat", 1, 0, [0, 1]), policy, steps=5,
+                 on_step=lambda task, targets: seen.append(np.array(targets)))
+    targets = np.stack(seen)
+    assert targets.shape == (5, 2, 29) and np.isfinite(targets).all()
+    assert np.abs(targets - np.asarray(spec.default_pose)).max() > 1e-3  # it acts, not just holds the pose
+
+
+def test_student_blind_to_previous_action_ignores_it():
+    """With blind_to_previous_action the normaliser hides every a_{t−1} input; the other inputs still count."""
+    from frbench.training.distill_student import train_student
+
+    rng = np.random.default_rng(0)
+    frame, joints = 6 + 3 * 29, 29
+    obs, actions = rng.normal(size=(64, frame)), rng.normal(size=(64, joints))
+    history = np.tile(obs, 2)
+    config = DistillConfig(**{**TINY.__dict__, "blind_to_previous_action": True})
+    actor, loss = train_student(obs, history, actions, config, 0)
+    assert np.isfinite(loss)
+    changed = obs.copy()
+    changed[:, -joints:] += 5.0
+    base = student_actions(actor, obs, history)
+    assert np.abs(student_actions(actor, changed, np.tile(changed, 2)) - base).max() < 1e-4
+    changed = obs.copy()
+    changed[:, :6] += 5.0
+    assert np.abs(student_actions(actor, changed, np.tile(changed, 2)) - base).max() > 1e-3
