@@ -122,3 +122,15 @@ def test_student_blind_to_previous_action_ignores_it():
     changed = obs.copy()
     changed[:, :6] += 5.0
     assert np.abs(student_actions(actor, changed, np.tile(changed, 2)) - base).max() > 1e-3
+
+
+def test_checkpoint_metadata_reads_a_file_holding_a_torch_state_dict(tmp_path):
+    """``torch.save`` of a module's state dict pickles an OrderedDict with a ``_metadata`` attribute."""
+    import torch
+
+    from frbench.policies.checkpoint import CHECKPOINT_FORMAT
+
+    path = tmp_path / "policy.pt"
+    torch.save({"format": CHECKPOINT_FORMAT, "method": "mpc-distill", "env_steps": 5,
+                "actor_state_dict": torch.nn.Linear(2, 2).state_dict()}, path)
+    assert checkpoint_metadata(path) == {"format": CHECKPOINT_FORMAT, "method": "mpc-distill", "env_steps": 5}

@@ -119,13 +119,14 @@ def checkpoint_metadata(path: Path) -> dict:
     Raises:
         PolicyError: the file is not such an archive or not a frbench checkpoint.
     """
+    import collections
     import pickle
     import zipfile
 
     class _Skeleton(pickle.Unpickler):
         def find_class(self, module: str, name: str):
             if module == "collections" and name == "OrderedDict":
-                return dict
+                return collections.OrderedDict  # a torch state dict sets its ``_metadata`` attribute
             return lambda *args, **kwargs: None  # tensors, storages: not needed to describe a checkpoint
 
         def persistent_load(self, pid):
