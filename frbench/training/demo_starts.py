@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from frbench.backends.base import RobotState
+from frbench.policies.registry import load_policy
 from frbench.tasks.observations import projected_gravity
 
 #: The model-based controller whose getting-up motion is recorded, per robot kind (policy names).
@@ -71,8 +72,6 @@ def record_demo_starts(env, specs, assignment: np.ndarray, tile_row: np.ndarray,
         tile_row: (N,) the tile each environment lies on (kept with the snapshots).
         steps: control steps to run; ``stride``: a snapshot every ``stride`` steps.
     """
-    from frbench.policies.registry import load_policy
-
     groups = [np.flatnonzero(assignment == k) for k in range(len(specs))]
     controllers = []
     for k, ids in enumerate(groups):

@@ -35,7 +35,12 @@ from pathlib import Path
 import numpy as np
 
 from frbench.errors import FrbenchError
+from frbench.evaluation.episodes import run_episodes
 from frbench.io import atomic_write_text
+from frbench.policies.checkpoint import read_checkpoint
+from frbench.robot_checks.lookup import get_robot
+from frbench.tasks.initial_states import draw_starts
+from frbench.terrains import make_terrain
 from frbench.training.distill_data import ObservationHistory, load_rounds, read_meta, shard_path, write_shard
 from frbench.training.distill_student import build_actor, save_student, student_actions, train_student
 
@@ -154,12 +159,6 @@ def _teacher(config: DistillConfig):
 def collect_batch(run: Path, config: DistillConfig, round_index: int, b: int) -> list[dict]:
     """Run batch ``b`` of round ``round_index`` and write its episodes' shards; their metas."""
     import torch
-
-    from frbench.evaluation.episodes import run_episodes
-    from frbench.policies.checkpoint import read_checkpoint
-    from frbench.robots import get_robot
-    from frbench.tasks.initial_states import draw_starts
-    from frbench.terrains import make_terrain
 
     torch.set_num_threads(1)
     cpu = time.process_time()

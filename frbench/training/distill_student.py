@@ -14,6 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from frbench.io import atomic_write_bytes, atomic_write_text
+from frbench.policies.checkpoint import CHECKPOINT_FORMAT
+from frbench.robot_checks.lookup import get_robot
 
 #: The checkpoint's training method (its loader: `frbench.policies.learned.load_learned_policy`).
 METHOD = "mpc-distill"
@@ -125,9 +127,6 @@ def save_student(path: Path, actor, config, round_index: int, dataset: dict) -> 
     import io
 
     import torch
-
-    from frbench.policies.checkpoint import CHECKPOINT_FORMAT
-    from frbench.robots import get_robot
 
     spec = get_robot(config.robot)
     record = {"method": METHOD,
