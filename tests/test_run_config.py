@@ -50,3 +50,23 @@ def test_set_values_are_parsed_by_the_field_types_not_their_text():
         parse_field("reward", "1")
     with pytest.raises(ValueError, match="--set curriculum=maybe: expected true or false"):
         parse_field("curriculum", "maybe")
+
+
+def test_population_seed_draws_the_robots_of_that_seed_and_leaves_the_default_unchanged():
+    import numpy as np
+
+    from frbench.training.config import parse_field
+    from frbench.training.population import TrainingRobots
+
+    small = dict(num_envs=4, num_morphologies=2, families=("flat",))
+
+    def robots(**fields):
+        cfg = TrainEnvConfig(**small, **fields)
+        return TrainingRobots.drawn(cfg, np.random.default_rng(cfg.seed))
+
+    seed1, swapped, seed0 = robots(seed=1), robots(seed=0, population_seed=1), robots(seed=0)
+    assert swapped.morphologies == seed1.morphologies != seed0.morphologies
+    assert swapped.assignment.tolist() == seed1.assignment.tolist()
+    assert parse_field("population_seed", "1") == 1 and parse_field("population_seed", "none") is None
+    assert TrainEnvConfig.from_dict({k: v for k, v in TrainEnvConfig(**small).to_dict().items()
+                                     if k != "population_seed"}).population_seed is None  # older runs' config.json

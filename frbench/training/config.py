@@ -72,6 +72,10 @@ class TrainEnvConfig:
     #: Frames of the ``long_history`` group (RMA's adaptation module reads 50); 0: no such group.
     long_history: int = 0
     seed: int = 0
+    #: The generator of the sampled robots (morphologies, their physics, their assignment to environments);
+    #: None: drawn from ``seed``'s generator like everything else. Set, it separates "which robots" from PPO's
+    #: and the starts' randomness (e.g. one population trained with several PPO seeds).
+    population_seed: int | None = None
     #: Starting states along a getting-up motion (`start_sources.DemoStarts`): the fraction of episodes that
     #: start from a recorded ``scripted`` state, falling linearly to 0 at ``demo_start_until`` env steps (0: off).
     demo_start_fraction: float = 0.0

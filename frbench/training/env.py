@@ -71,7 +71,7 @@ class RecoveryTrainingEnv(VecEnv):
         self.num_envs = n = cfg.num_envs
         self.rng = np.random.default_rng(cfg.seed)
         self.grid = build_grid(cfg.families)
-        self.robots = TrainingRobots(cfg, self.rng)
+        self.robots = TrainingRobots.drawn(cfg, self.rng)
         self.spec = self.robots.spec
         self.num_actions = self.spec.n_joints
         self.default_pose = np.asarray(self.spec.default_pose)

@@ -70,6 +70,12 @@ class TrainingRobots:
         #: The humanoid's head points (`step_reward.HeadPoints`); None for quadrupeds.
         self.head = HeadPoints(specs, self.assignment) if self.humanoid else None
 
+    @classmethod
+    def drawn(cls, cfg, rng: np.random.Generator) -> "TrainingRobots":
+        """The robots of ``cfg``: from ``rng`` (the env's generator), or from their own generator when
+        ``cfg.population_seed`` is set."""
+        return cls(cfg, rng if cfg.population_seed is None else np.random.default_rng(cfg.population_seed))
+
     def _feasible_morphologies(self) -> list:
         """``num_morphologies`` sampled robots (CoM shift applied when randomising) that can stand at the lowest
         training gains (`feasibility.can_stand`); the others are redrawn and counted in ``self.rejected``.
