@@ -19,6 +19,8 @@ def test_a_run_keeps_its_learning_curve_as_csv_with_losses_and_plot_training_dra
     assert list(rows[0])[:5] == ["iteration", "env_steps", "wall_s", "success_all", "success_flat"]
     assert {"success_stairs", "loss_surrogate", "loss_value"} <= set(rows[0])
     assert all(float(r["loss_value"]) >= 0 for r in rows)
+    assert all(0.0 < float(r["policy_std"]) < 2.0 and 1e-6 <= float(r["policy_learning_rate"]) <= 1e-2 for r in rows)
+    assert float(rows[0]["reward_upright_orientation"]) > 0 > float(rows[0]["reward_joint_torques"])
     out = tmp_path / "curves.png"
     assert main(["plot-training", str(tmp_path / "seed0"), str(tmp_path / "seed1"), "--out", str(out)]) == 0
     assert out.stat().st_size > 10_000
@@ -50,3 +52,12 @@ def test_a_run_writes_no_rsl_rl_model_files_and_its_curve_reaches_tensorboard(tm
     events.Reload()
     steps = [e.step for e in events.Scalars("train/success_flat")]
     assert steps == [96, 192] and "loss/loss_value" in events.Tags()["scalars"]
+
+
+def test_runs_that_share_a_folder_name_are_labelled_with_their_parent():
+    from pathlib import Path
+
+    from frbench.training.curves import run_labels
+
+    assert run_labels([Path("a/seed0"), Path("a/seed1")]) == ["seed0", "seed1"]
+    assert run_labels([Path("x/lc-a/seed0"), Path("x/lc-b/seed0")]) == ["lc-a/seed0", "lc-b/seed0"]

@@ -4,7 +4,8 @@ one PNG (``frbench plot-training``).
 A run folder (`frbench.training.run.TrainingRun`) logs one row per checkpoint in ``progress.json``: ``env_steps``,
 ``wall_s`` [s], the *training* success rates (``success_all``, ``success_<family>``: episodes from fallen starts
 that ended in the logging window, actions sampled with the policy's exploration noise) and the mean losses of the
-PPO updates since the previous row (``loss_<name>``). `write_curve_csv` writes the same rows as ``curve.csv``
+PPO updates since the previous row (``loss_<name>``), the policy's mean action std and learning rate over those
+updates (``policy_std``, ``policy_learning_rate``) and each reward term's mean per env step (``reward_<term>``). `write_curve_csv` writes the same rows as ``curve.csv``
 (one column per key, empty where a row lacks one).
 """
 
@@ -25,9 +26,11 @@ LEADING_COLUMNS = ("iteration", "env_steps", "wall_s", "success_all", "success_f
 
 
 class LossLog:
-    """The loss dicts of the updates since the last `means` call (an algorithm's ``update`` adds each)."""
+    """Dicts of numbers added since the last `means` call, averaged: the losses of the PPO updates (an algorithm's
+    ``update`` adds each), the policy's std and learning rate per update, or the reward terms per env step."""
 
-    def __init__(self):
+    def __init__(self, prefix: str = "loss_"):
+        self.prefix = prefix
         self._sums: dict[str, float] = {}
         self._count = 0
 
@@ -38,8 +41,8 @@ class LossLog:
         self._count += 1
 
     def means(self) -> dict[str, float]:
-        """``loss_<name>`` → mean over the updates added since the last call (then forgotten); {} if none."""
-        out = {f"loss_{k}": round(v / self._count, 6) for k, v in self._sums.items()} if self._count else {}
+        """``<prefix><name>`` → mean over the dicts added since the last call (then forgotten); {} if none."""
+        out = {f"{self.prefix}{k}": round(v / self._count, 6) for k, v in self._sums.items()} if self._count else {}
         self._sums, self._count = {}, 0
         return out
 
@@ -59,7 +62,7 @@ class TensorBoardCurve:
             self._writer = SummaryWriter(log_dir=str(self.folder))
         for key, value in row.items():
             if key not in ("iteration", "env_steps") and isinstance(value, (int, float)):
-                group = "loss" if key.startswith("loss_") else "train"
+                group = next((g for g in ("loss", "reward", "policy") if key.startswith(g + "_")), "train")
                 self._writer.add_scalar(f"{group}/{key}", value, global_step=int(row["env_steps"]))
         self._writer.flush()
 
@@ -107,6 +110,14 @@ def read_progress(run: Path) -> list[dict]:
     return rows
 
 
+def run_labels(runs: list[Path]) -> list[str]:
+    """Each run's folder name, or ``parent/name`` when two runs share a name (seeds of several recipes)."""
+    names = [Path(run).name for run in runs]
+    if len(set(names)) == len(names):
+        return names
+    return [f"{Path(run).resolve().parent.name}/{Path(run).name}" for run in runs]
+
+
 def plot_training(runs: list[Path], out: Path, metrics=("success_flat", "success_all"), labels=None) -> Path:
     """One PNG: each metric in its own panel, one line per run, against env steps [M]."""
     import matplotlib
@@ -115,7 +126,7 @@ def plot_training(runs: list[Path], out: Path, metrics=("success_flat", "success
     import matplotlib.pyplot as plt
 
     curves = [read_progress(run) for run in runs]
-    labels = list(labels) if labels else [Path(run).name for run in runs]
+    labels = list(labels) if labels else run_labels(runs)
     fig, axes = plt.subplots(1, len(metrics), figsize=(5 * len(metrics), 3.6), dpi=120, squeeze=False)
     for ax, metric in zip(axes[0], metrics):
         for rows, label in zip(curves, labels):

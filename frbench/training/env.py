@@ -50,6 +50,7 @@ from frbench.training.action_hold import HeldAction
 from frbench.training.assist import AssistForce
 from frbench.training.config import TrainEnvConfig
 from frbench.training.curriculum import TerrainCurriculum
+from frbench.training.curves import LossLog
 from frbench.training.height_raster import HeightRaster
 from frbench.training.observation_groups import observation_groups
 from frbench.training.population import TrainingRobots, yaw_of
@@ -94,6 +95,8 @@ class RecoveryTrainingEnv(VecEnv):
                             variants=self.robots.variants, ground_height=self._ground_height,
                             nominal_height=self.robots.nominal_height, track_metrics=False, surface_rules=False)
         self.last_episode_stats: dict[str, float] = {}
+        #: each reward term's mean per env step since the learning curve's last row (``reward_<term>``)
+        self.reward_means = LossLog(prefix="reward_")
         self._new_episodes()
 
     # ------------------------------------------------------------------ the core env's parts, for callers
@@ -165,6 +168,7 @@ class RecoveryTrainingEnv(VecEnv):
         reward, term_sums, alive = self.core.step(action)
         self.episode_length_buf += 1
         log = {f"/reward/{k}": _alive_mean(v, alive) / self.core.actions.held for k, v in term_sums.items()}
+        self.reward_means.add({k[len("/reward/"):]: v for k, v in log.items()})
         done = self.core.done
         if done:
             self.last_episode_stats = self.starts.end_episodes(self.core, self.core.success.success.copy(), alive)

@@ -178,7 +178,8 @@ class TrainingRun:
                                                  device=distributed.training_device())
         self.losses = LossLog()  # the updates' losses in each logging window, for the learning curve
         self.tensorboard = TensorBoardCurve(self.out)
-        logging_updates(self.runner.alg, self.losses)
+        self.policy_stats = LossLog(prefix="policy_")  # the action std and learning rate after each update
+        logging_updates(self.runner.alg, self.losses, self.policy_stats)
         # control steps per iteration, summed over the ranks: each decision holds its action for `action_hold` steps
         self.steps_per_iteration = (self.env.num_envs * train_cfg["num_steps_per_env"] * self.env.cfg_obj.action_hold
                                     * ranks.world_size)
@@ -275,7 +276,8 @@ class TrainingRun:
             if self.ranks.world_size > 1:
                 self.env.env_steps = self.env_steps  # schedules (demo starts, assist force) follow the run's steps
             self.progress.append({"iteration": self.iteration, "env_steps": self.env_steps, "wall_s": round(self.wall, 1),
-                                  **stats, **self.losses.means()})
+                                  **stats, **self.losses.means(), **self.policy_stats.means(),
+                                  **self.env.reward_means.means()})
             if self.ranks.is_main:
                 self.tensorboard.add(self.progress[-1])
             self.save()
@@ -287,13 +289,18 @@ class TrainingRun:
             plot_training([self.out], self.out / "curve.png", labels=[f"{self.method} ({self.out.name})"])
 
 
-def logging_updates(algorithm, log: LossLog) -> None:
-    """Make every ``algorithm.update()`` (rsl-rl's: it returns a dict of mean losses) also add them to ``log``."""
+def logging_updates(algorithm, log: LossLog, policy_log: LossLog | None = None) -> None:
+    """Make every ``algorithm.update()`` (rsl-rl's: it returns a dict of mean losses) also add them to ``log``, and
+    the policy's mean action std and learning rate after it to ``policy_log`` (rsl-rl's public
+    ``get_policy().output_std`` and ``learning_rate``)."""
     update = algorithm.update
 
     def update_and_log():
         losses = update()
         log.add(losses or {})
+        if policy_log is not None and hasattr(algorithm, "get_policy"):  # RMA's adaptation phase has no policy std
+            policy_log.add({"std": float(algorithm.get_policy().output_std.detach().mean()),
+                            "learning_rate": float(algorithm.learning_rate)})
         return losses
 
     algorithm.update = update_and_log
