@@ -47,9 +47,9 @@ from frbench.policies.keyframe_humanoid import (
 )
 from tools.keyframe_states import STATE_FIELDS, parse_seeds
 from frbench.evaluation.episodes import run_episodes
-from frbench.tasks.initial_states import FALL_KINDS, FallenStarts, draw_starts
+from frbench.tasks.initial_states import FALL_KINDS, FallenStarts, RecordedStarts, draw_starts
 from frbench.backends import make_backend
-from frbench.tasks.recovery import EPISODE_STEPS, RecoveryTask
+from frbench.tasks.recovery import EPISODE_STEPS
 
 #: The key frames were searched on protocol 1.0's starts; the seeds in keyframe_humanoid_params.json name those.
 SEARCH_STARTS_PROTOCOL = "1.0"
@@ -202,9 +202,9 @@ class Evaluator:
 
 class StepTrace:
     """Per-step records of N episodes over ``steps`` control steps, as an ``on_step(task, targets)`` callback of
-    `run_episodes` (or called after each step of a loop of one's own): the pelvis height above the ground
-    ``heights`` (T, N) [m] and the projected gravity z ``gravity_z`` (T, N), both as the success test read them;
-    with a ``policy`` also its ``phases`` (T, N) and the projected gravity x ``gravity_x`` (T, N) (the roll stage).
+    `run_episodes`: the pelvis height above the ground ``heights`` (T, N) [m] and the projected gravity z
+    ``gravity_z`` (T, N), both as the success test read them; with a ``policy`` also its ``phases`` (T, N) and
+    the projected gravity x ``gravity_x`` (T, N) (the roll stage).
     """
 
     def __init__(self, steps: int, n: int, policy=None):
@@ -269,14 +269,14 @@ class RiseEvaluator:
     gains and without the settle, for ``steps`` control steps, with the task's success test; ``deadline``
     [control steps]: an up after it does not count (`episode_scores`).
 
-    Its episodes do not go through `run_episodes`: they start from the recorded states themselves (velocities
-    included, no settle, the previous action = the recorded angles), which the runner's reset (drawn fallen
-    starts, settled) does not offer; ``RecoveryTask.restart`` replaces the state only after a settle and after
-    the first observation. It sets the episode's start on the task here instead."""
+    Its episodes go through `run_episodes` from `RecordedStarts` (`RecoveryTask.begin`: the recorded states
+    themselves, velocities included, no settle, nominal physics, the previous action = the placed angles) in one
+    batched simulator of ``backend``, built once and reused by every generation; the controller enters the
+    crouch in ``on_reset`` and a `StepTrace` records the steps."""
 
     def __init__(self, states_file: str, popsize: int, steps: int = 150, backend: str = "mujoco",
                  deadline: int | None = None):
-        from frbench.backends.base import PhysicsParams, RobotState
+        from frbench.backends.base import RobotState
         from frbench.robots import get_robot
         from frbench.terrains import make_terrain
 
@@ -284,42 +284,27 @@ class RiseEvaluator:
         data = np.load(states_file)
         self.popsize, self.n_starts, self.steps, self.deadline = popsize, len(data["q"]), steps, deadline
         n = popsize * self.n_starts
-        self.state = RobotState(**{k: np.tile(data[k], (popsize, 1)) for k in STATE_FIELDS})
+        self.starts = RecordedStarts(RobotState(**{k: np.tile(data[k], (popsize, 1)) for k in STATE_FIELDS}))
         #: The controller's targets when the state was recorded (J,) per state, if the file has them (else the
         #: measured angles): the crouch then ramps from where the recorded run's targets were.
-        self.targets = np.tile(data["targets"], (popsize, 1)) if "targets" in data else self.state.q
-        terrain = make_terrain("flat", 1, 0)
-        self.task = RecoveryTask(self.spec, make_backend(backend, self.spec, n, terrain=terrain), terrain, n)
-        self.nominal = PhysicsParams.nominal(self.spec, n)
+        self.targets = np.tile(data["targets"], (popsize, 1)) if "targets" in data else self.starts.state.q
+        self.terrain = make_terrain("flat", 1, 0)
+        self.backend = make_backend(backend, self.spec, n, terrain=self.terrain)
         self.kinds = ["recorded"] * self.n_starts
 
     def run(self, parameters: np.ndarray):
-        from frbench.tasks.success import SuccessTracker
-
-        task, n = self.task, self.popsize * self.n_starts
-        rows = np.repeat(np.asarray(parameters, dtype=float), self.n_starts, axis=0)
-        task.backend.set_params(self.nominal)
-        task.backend.reset(np.arange(n), self.state)
-        task.state = task.backend.state()
-        task.start_xy = task.state.base_pos[:, :2].copy()
-        task.previous_action = task.state.q.copy()
-        task.settle_diverged = np.zeros(n, dtype=bool)
-        task.success = SuccessTracker(n, "humanoid", self.spec.nominal_height)
-        from frbench.tasks.success import EpisodeMetrics
-
-        task.metrics = EpisodeMetrics(n, self.spec.n_joints)
-        obs = task.observation()
-        policy = KeyframeHumanoidPolicy(rows)
-        policy.reset(self.spec, n)
-        policy.enter_gate(np.arange(n), self.targets, task.state.q)
+        """(scores (popsize,), successes (popsize, n_starts), max heights (popsize, n_starts)) of candidate
+        parameter rows (popsize, D)."""
+        n = self.popsize * self.n_starts
+        policy = KeyframeHumanoidPolicy(np.repeat(np.asarray(parameters, dtype=float), self.n_starts, axis=0))
         trace = StepTrace(self.steps, n)
-        for _ in range(self.steps):
-            obs = task.step(policy.act(obs))
-            trace(task)
+        task = run_episodes(self.spec, self.backend, self.terrain, self.starts, policy, steps=self.steps,
+                            on_reset=lambda task: policy.enter_gate(np.arange(n), self.targets, task.state.q),
+                            on_step=trace, check=False)
         return _scored_result(task, trace, (self.popsize, self.n_starts), self.deadline)
 
     def close(self) -> None:
-        self.task.backend.close()
+        self.backend.close()
 
 
 class PooledEvaluator:

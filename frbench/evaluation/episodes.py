@@ -2,7 +2,9 @@
 analyses and the tools share.
 
 `run_episodes` builds the simulator (`frbench.tasks.recovery.open_backend`, unless handed a built one) and the
-episode engine over it (`frbench.tasks.recovery.RecoveryTask`), resets them and the policy, then for every
+episode engine over it (`frbench.tasks.recovery.RecoveryTask`), resets them and the policy (drawn `FallenStarts`:
+placed, settled and screened, `RecoveryTask.reset`; `RecordedStarts`: begun at the recorded states, no settle,
+`RecoveryTask.begin`, as the key frames' rise stage in ``tools/keyframe_search.py`` does), then for every
 control step asks the policy for joint targets, checks them (`checked_actions`: shape (N, J), finite; a one-line
 `PolicyError` otherwise) and steps the engine; it closes the simulator it built whatever happens (a simulator
 handed in stays open: its builder owns it). What callers need beyond the outcome comes in as callbacks:
@@ -22,6 +24,7 @@ from contextlib import nullcontext
 from typing import Callable
 
 from frbench.policies.base import checked_actions
+from frbench.tasks.initial_states import RecordedStarts
 from frbench.tasks.recovery import EPISODE_STEPS, RecoveryTask, open_backend
 
 #: Returned by ``on_step`` to end the episodes before their last step.
@@ -31,14 +34,14 @@ STOP = "stop"
 def run_episodes(spec, backend, terrain, starts, policy, *, seed: int = 0, steps: int = EPISODE_STEPS,
                  noise_rng=None, on_reset: Callable | None = None, on_step: Callable | None = None,
                  check: bool = True) -> RecoveryTask:
-    """Run ``len(starts)`` episodes of ``policy`` on ``spec`` in ``backend`` (a name or a `Backend`) over
-    ``terrain`` for ``steps`` control steps (see the module docstring); ``seed`` is the terrain's, passed to a
-    policy that plans on the simulator. ``check=False`` skips the action check (a tool's own trusted
-    controller)."""
+    """Run ``len(starts.kinds)`` episodes of ``policy`` on ``spec`` in ``backend`` (a name or a `Backend`) over
+    ``terrain`` for ``steps`` control steps from ``starts`` (`FallenStarts` or `RecordedStarts`, see the module
+    docstring); ``seed`` is the terrain's, passed to a policy that plans on the simulator. ``check=False``
+    skips the action check (a tool's own trusted controller)."""
     n = len(starts.kinds)
     with open_backend(backend, spec, n, terrain) if isinstance(backend, str) else nullcontext(backend) as physics:
         task = RecoveryTask(spec, physics, terrain, n, noise_rng=noise_rng)
-        obs = task.reset(starts)
+        obs = task.begin(starts) if isinstance(starts, RecordedStarts) else task.reset(starts)
         policy.reset(spec, n)
         privileged = getattr(policy, "uses_simulator_state", False)
         if privileged:

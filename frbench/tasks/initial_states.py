@@ -21,6 +21,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from frbench.backends.base import RobotState
 from frbench.backends.self_collision import self_intersects
 from frbench.robots.sim_urdf import sim_robot_file
 from frbench.robots.spec import RobotSpec
@@ -62,6 +63,22 @@ class FallenStarts:
     kinds: list[str]
     cell: tuple | None = None
     attempts: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class RecordedStarts:
+    """N recorded starts, begun as they are (`frbench.tasks.recovery.RecoveryTask.begin`: no settle, velocities
+    included) instead of drawn and settled: ``state`` a `RobotState` of N rows (e.g. mid-recovery states that
+    ``tools/keyframe_states.py`` recorded), ``previous_action`` (N, n_joints) [rad] the joint targets the first
+    observation reports as the previous action, or None for the state's joint angles. `run_episodes` takes them
+    in place of `FallenStarts`; ``kinds`` (N,) are all ``"recorded"``."""
+
+    state: RobotState
+    previous_action: np.ndarray | None = None
+
+    @property
+    def kinds(self) -> list[str]:
+        return ["recorded"] * len(self.state.q)
 
 
 def episode_rng(robot: str, family: str, level: int, seed: int, episode: int, attempt: int = 0,

@@ -20,8 +20,11 @@ environment) closes; the task never builds or closes one. One episode:
    the success test reads;
 3. read ``success``, ``time_to_recover`` and ``metrics``.
 
-Training adds, between 1 and 2, ``restart(ids, state)``: some episodes start
-from recorded states instead (demo and rise starts, `frbench.training.start_sources`).
+Instead of 1, ``begin(starts)`` starts the episodes at recorded states
+(`RecordedStarts`: velocities included, no settle; the key frames' rise stage,
+`tools/keyframe_search.py`). Training adds, between 1 and 2,
+``restart(ids, state)``: some episodes start from recorded states instead
+(demo and rise starts, `frbench.training.start_sources`).
 """
 
 from __future__ import annotations
@@ -36,7 +39,7 @@ from frbench.backends import make_backend
 from frbench.backends.contact_layout import vector_norm
 from frbench.backends.base import PhysicsParams, RobotState, SummarizedContacts
 from frbench.robots.spec import RobotSpec
-from frbench.tasks.initial_states import SETTLE_GAIN_SCALE, SETTLE_SECONDS, FallenStarts
+from frbench.tasks.initial_states import SETTLE_GAIN_SCALE, SETTLE_SECONDS, FallenStarts, RecordedStarts
 from frbench.tasks.observations import projected_gravity, proprioception
 from frbench.tasks.protocol import CONTROL_DT, EPISODE_SECONDS
 from frbench.tasks.start_screening import screen_starts
@@ -90,7 +93,7 @@ class RecoveryTask:
             torso-tilt rule (`TorsoFrame`); the training env, on a world of many terrain tiles, passes False and
             its curriculum reads the tilt, height, contact and displacement conditions only.
 
-    After ``reset``: ``state`` (`RobotState`), ``contacts`` (`Contacts`), ``params`` (the episode's
+    After ``reset`` (or ``begin``): ``state`` (`RobotState`), ``contacts`` (`Contacts`), ``params`` (the episode's
     `PhysicsParams`), ``success`` (`SuccessTracker`), ``metrics`` (`EpisodeMetrics` or None),
     ``settle_diverged`` (N,) and ``t`` (control steps since t = 0). After each ``step`` also ``signals``
     (the `StepSignals` the success test read), ``gravity`` (N, 3) (the projected gravity) and ``alive`` (N,)
@@ -156,6 +159,13 @@ class RecoveryTask:
 
     def _height_of_terrain(self, xy: np.ndarray) -> np.ndarray:
         return height_at(self.terrain, xy)
+
+    def _place(self, ids: np.ndarray, state: RobotState) -> None:
+        """Put simulations ``ids`` in ``state`` (len(ids) rows), read ``state`` and ``contacts`` and measure the
+        start (displacement and the start surface are measured from here)."""
+        self.backend.reset(ids, state)
+        self.state, self.contacts = self.backend.state(), self.backend.contacts()
+        self._measure_start()
 
     def settle(self, starts: FallenStarts, settle_steps: int = SETTLE_STEPS) -> None:
         """Place the starts (one per environment) and settle them for ``settle_steps`` control steps with the
@@ -247,11 +257,33 @@ class RecoveryTask:
         self.params = self.nominal if params is None else params
         self.settle(starts, settle_steps)
         self.starts = screen_starts(self, starts, settle_steps)
-        self.previous_action = np.tile(self.default_pose, (n, 1))
+        return self._start_episodes(np.tile(self.default_pose, (n, 1)), self.backend.diverged.copy())
+
+    def begin(self, starts: RecordedStarts, params: PhysicsParams | None = None) -> dict[str, np.ndarray]:
+        """Begin the episodes at recorded states (`RecordedStarts`, one per environment) under ``params``
+        (default: the spec's nominal physics), without a settle: t = 0 is the state as recorded, velocities
+        included (displacement and the start surface are measured from it), the previous action is
+        ``starts.previous_action`` or, if None, the placed state's joint angles; ``self.starts`` holds ``starts``.
+        Returns the first observation."""
+        n = self.num_envs
+        if len(starts.kinds) != n:
+            raise ValueError(f"begin: {len(starts.kinds)} recorded states for {n} episodes")
+        self.params = self.nominal if params is None else params
+        self.backend.set_params(self.params)
+        self._place(np.arange(n), starts.state)
+        self.starts = starts
+        previous = self.state.q.copy() if starts.previous_action is None else np.array(starts.previous_action, dtype=float)
+        return self._start_episodes(previous, np.zeros(n, dtype=bool))
+
+    def _start_episodes(self, previous_action: np.ndarray, settle_diverged: np.ndarray) -> dict[str, np.ndarray]:
+        """t = 0 from the placed starts: ``previous_action`` (N, n_joints) [rad], a fresh success test and
+        metrics, ``settle_diverged`` (N,); returns the first observation."""
+        n = self.num_envs
+        self.previous_action = previous_action
         self._kept, self._signals_now, self._diverged = [], None, None
         self._success = SuccessTracker(n, self.spec.kind, self.nominal_height)
         self._metrics = EpisodeMetrics(n, self.spec.n_joints) if self.track_metrics else None
-        self.settle_diverged = self.backend.diverged.copy()
+        self.settle_diverged = settle_diverged
         self.t = 0
         return self.observation()
 
@@ -259,9 +291,7 @@ class RecoveryTask:
         """Before the first step: start episodes ``ids`` from ``state`` (len(ids) rows) instead of their
         settled fallen starts (displacement is measured from there)."""
         self._catch_up()
-        self.backend.reset(ids, state)
-        self.state, self.contacts = self.backend.state(), self.backend.contacts()
-        self._measure_start()
+        self._place(ids, state)
         self.settle_diverged[ids] = False
 
     def _signals(self, contacts) -> StepSignals:
