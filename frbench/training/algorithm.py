@@ -41,6 +41,7 @@ from rsl_rl.utils import resolve_class, resolve_obs_groups, resolve_optimizer
 
 from frbench.networks.models import EstimatorActor, RMAActor
 from frbench.training.distributed import all_reduce_gradients
+from frbench.training.storage import HookedRolloutStorage
 
 #: Estimator head → observation group holding its target (the environment contract).
 TARGET_GROUPS = {"mass": "mass", "contact": "contact", "velocity": "velocity"}
@@ -109,6 +110,7 @@ class EstimatorPPO(PPO):
         optimizer: str = "adam",
         **ppo_kwargs,
     ) -> None:
+        storage = HookedRolloutStorage.like(storage)  # the estimator steps after each of PPO's mini-batches
         super().__init__(actor, critic, storage, learning_rate=learning_rate, optimizer=optimizer, **ppo_kwargs)
         for name, value, ppo_value in (("estimator_epochs", estimator_epochs, self.num_learning_epochs),
                                        ("estimator_mini_batches", estimator_mini_batches, self.num_mini_batches)):
@@ -144,15 +146,14 @@ class EstimatorPPO(PPO):
         observations = self.storage.observations
         next_o, valid = self.estimator_targets()
         observations[NEXT_OBS_GROUP], observations[NEXT_VALID_GROUP] = next_o, valid.unsqueeze(-1)
-        generator = self.storage.mini_batch_generator
         self._estimator_sums, self._estimator_steps = {}, 0
-        self.storage.mini_batch_generator = lambda *args, **kwargs: self._with_estimator_steps(generator(*args, **kwargs))
+        self.storage.after_batch = self._estimator_step
         actor.keep_estimator_output = True
         self.estimator.train()
         try:
             loss_dict = super().update()
         finally:
-            del self.storage.mini_batch_generator  # the class's generator again
+            self.storage.after_batch = None
             actor.keep_estimator_output = False
             actor.estimator_output = None
             for key in (NEXT_OBS_GROUP, NEXT_VALID_GROUP):
@@ -162,12 +163,6 @@ class EstimatorPPO(PPO):
         steps = max(self._estimator_steps, 1)
         loss_dict.update({k: v / steps for k, v in self._estimator_sums.items()})
         return loss_dict
-
-    def _with_estimator_steps(self, batches):
-        """PPO's mini-batches; after PPO's step on each, the estimator's step on the same rows."""
-        for batch in batches:
-            yield batch
-            self._estimator_step(batch)
 
     def _estimator_step(self, batch) -> None:
         """One Adam step of the estimator on the output the actor kept from this mini-batch's forward pass."""
