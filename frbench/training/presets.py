@@ -74,6 +74,10 @@ PRESETS: Mapping[str, Preset] = MappingProxyType({
         "symmetry with entropy coefficient 0.01 (rsl-rl's and MuJoCo Playground's getup value) instead of 0.005",
         env=MappingProxyType({"demo_start_fraction": 0.5}), symmetry=True,
         algorithm=MappingProxyType({"entropy_coef": 0.01})),
+    "symmetry-assist": Preset(
+        "symmetry-entropy with HoST's assist force on quadrupeds: 0.4 x the weight, falling to 0 at 2.5 M env steps",
+        env=MappingProxyType({"demo_start_fraction": 0.5, "assist_force": 0.4, "assist_until": 2.5e6}),
+        symmetry=True, algorithm=MappingProxyType({"entropy_coef": 0.01})),
     "no-stability": Preset(
         "demo-starts without the stability reward terms (the frnet-no-stability ablation)",
         env=MappingProxyType({"demo_start_fraction": 0.5}), drop_terms=STABILITY_TERMS),
