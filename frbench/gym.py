@@ -40,6 +40,10 @@ episode's end ``episode_metrics``, the record ``frbench evaluate`` writes
 (success, time to recover, displacements, energy, smoothness, peak contact
 force, rolled over, diverged).
 
+Fallen starts are drawn from a generator seeded with ``seed`` (default 0) when
+the env is made; ``reset(seed=S)`` replaces it with one seeded with S, and a
+reset without a seed draws on from the current one.
+
 Episodes end by truncation, all environments together; the vector environment
 resets them in the same step (``AutoresetMode.SAME_STEP``), the last
 observation in ``infos["final_obs"]``. ``render_mode="rgb_array"`` draws with
@@ -97,7 +101,7 @@ class FallRecoveryVectorEnv(VectorEnv):
     def __init__(self, num_envs: int = 1, robot: str = "go2", backend: str = "mujoco", terrain: str = "flat",
                  level: int = 1, terrain_seed: int = 0, reward="training", action_scale: float = ACTION_SCALE,
                  render_mode: str | None = None, render_size: tuple[int, int] = (640, 480),
-                 max_episode_steps: int | None = None):
+                 max_episode_steps: int | None = None, seed: int = 0):
 
         if max_episode_steps not in (None, EPISODE_STEPS):
             raise ValueError(f"max_episode_steps={max_episode_steps}: the protocol's episodes last {EPISODE_STEPS} steps")
@@ -119,7 +123,8 @@ class FallRecoveryVectorEnv(VectorEnv):
         n = spec.n_joints
         self.default_pose = np.asarray(spec.default_pose)
         self.core = CoreEnv(spec, backend, self.terrain, num_envs, hold=HeldAction(1), reward=self.step_reward,
-                            transform=DirectTargets(self.default_pose, self.action_scale), episode_steps=EPISODE_STEPS)
+                            transform=DirectTargets(self.default_pose, self.action_scale), episode_steps=EPISODE_STEPS,
+                            rng=np.random.default_rng(seed))
         low, high = observation_bounds(spec)
         self.single_observation_space = gymnasium.spaces.Box(low, high, dtype=np.float32)
         self.single_action_space = gymnasium.spaces.Box(-1.0, 1.0, shape=(n,), dtype=np.float32)

@@ -17,7 +17,7 @@ def _core(spec, terrain, hold: int = 1, num_envs: int = 1) -> CoreEnv:
     reward = StepReward(reward_config("training", spec.kind), spec, spec.nominal_height,
                         lambda xy: height_at(terrain, xy))
     return CoreEnv(spec, "mujoco", terrain, num_envs, transform=DirectTargets(spec.default_pose, 1.0),
-                   hold=HeldAction(hold), reward=reward)
+                   hold=HeldAction(hold), reward=reward, rng=np.random.default_rng(0))
 
 
 def _actions(steps: int, n_joints: int) -> np.ndarray:

@@ -130,3 +130,17 @@ def test_stable_baselines3_check_env_passes_with_warnings_as_errors():
             sb3_checker.check_env(env.unwrapped, warn=True, skip_render_check=True)
     finally:
         env.close()
+
+
+def test_unseeded_resets_draw_from_the_generator_seeded_at_construction():
+    """``seed`` at make time fixes the starts of resets without a seed; ``reset(seed=S)`` equals make(seed=S)."""
+    first = []
+    for seed in (3, 3, 4):
+        env = gymnasium.make(ENV_ID, robot="go2", backend="mujoco", seed=seed)
+        first.append(env.reset()[0])
+        env.close()
+    np.testing.assert_array_equal(first[0], first[1])
+    assert np.abs(first[0] - first[2]).max() > 1e-3
+    env = gymnasium.make(ENV_ID, robot="go2", backend="mujoco")
+    np.testing.assert_array_equal(env.reset(seed=4)[0], first[2])
+    env.close()

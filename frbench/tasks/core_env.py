@@ -61,7 +61,7 @@ class CoreEnv:
             (no reward: zeros).
         assist: an assist force (``clear(env)``, ``apply(env, env_steps)``) or None.
         starts: the start distribution (``new_episodes(env, rng)``); default `ProtocolStarts` on ``terrain``.
-        rng: the generator every start is drawn from (default: an unseeded one; `seed` replaces it).
+        rng: the seeded generator every start is drawn from (`seed` replaces it).
         history, long_history: policy observations kept (H, T; None / 0: none kept).
         episode_steps: control steps per episode.
         variants, noise_rng, ground_height, nominal_height, track_metrics, surface_rules: as in `make_backend`
@@ -69,7 +69,7 @@ class CoreEnv:
     """
 
     def __init__(self, spec: RobotSpec, backend: str, terrain, num_envs: int, *, transform, hold,
-                 reward: Callable | None = None, assist=None, starts=None, rng: np.random.Generator | None = None,
+                 rng: np.random.Generator, reward: Callable | None = None, assist=None, starts=None,
                  history: int | None = None, long_history: int = 0, episode_steps: int = EPISODE_STEPS,
                  variants=None, noise_rng=None, ground_height: Callable | None = None, nominal_height=None,
                  track_metrics: bool = True, surface_rules: bool = True):
@@ -77,7 +77,7 @@ class CoreEnv:
         self.default_pose = np.asarray(spec.default_pose)
         self.transform, self.actions, self.reward, self.assist = transform, hold, reward, assist
         self.starts = ProtocolStarts(terrain) if starts is None else starts
-        self.rng = np.random.default_rng() if rng is None else rng
+        self.rng = rng
         self.history_length, self.long_history_length = history, long_history
         self.history = self.long_history = None
         self.episode_steps = int(episode_steps)
