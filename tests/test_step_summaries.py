@@ -110,7 +110,7 @@ def test_raster_lookups_equal_the_clipped_nearest_cell_rule():
 
 
 def test_observation_groups_zero_only_what_is_invalid():
-    from frbench.training.observation_groups import _zero_invalid
+    from frbench.tasks.core_env import zero_invalid as _zero_invalid
 
     value = np.arange(12.0).reshape(4, 3)
     assert _zero_invalid(value, None) is value

@@ -64,6 +64,8 @@ class CoreEnv:
         rng: the seeded generator every start is drawn from (`seed` replaces it).
         history, long_history: policy observations kept (H, T; None / 0: none kept).
         episode_steps: control steps per episode.
+        privileged: ``privileged(env) -> {group: (N, ·) array}``, the groups beyond proprioception that
+            `observation_groups` adds (training's `frbench.training.observation_groups.PrivilegedGroups`), or None.
         variants, noise_rng, ground_height, nominal_height, track_metrics, surface_rules: as in `make_backend`
             and `RecoveryTask`.
     """
@@ -72,12 +74,12 @@ class CoreEnv:
                  rng: np.random.Generator, reward: Callable | None = None, assist=None, starts=None,
                  history: int | None = None, long_history: int = 0, episode_steps: int = EPISODE_STEPS,
                  variants=None, noise_rng=None, ground_height: Callable | None = None, nominal_height=None,
-                 track_metrics: bool = True, surface_rules: bool = True):
+                 track_metrics: bool = True, surface_rules: bool = True, privileged: Callable | None = None):
         self.spec, self.terrain, self.num_envs = spec, terrain, int(num_envs)
         self.default_pose = np.asarray(spec.default_pose)
         self.transform, self.actions, self.reward, self.assist = transform, hold, reward, assist
         self.starts = ProtocolStarts(terrain) if starts is None else starts
-        self.rng = rng
+        self.rng, self.privileged = rng, privileged
         self.history_length, self.long_history_length = history, long_history
         self.history = self.long_history = None
         self.episode_steps = int(episode_steps)
@@ -246,6 +248,20 @@ class CoreEnv:
         o_t[:, -self.spec.n_joints:] = self.actions.current
         return o_t
 
+    def observation_groups(self) -> dict[str, np.ndarray]:
+        """A learner's observation groups, each (N, ·): ``policy`` (`policy_observation`), ``history`` (N, H·D),
+        the groups of ``privileged``, ``long_history`` (N, T·D; with ``long_history`` > 0). NaN and infinities
+        become 0, and a diverged simulation's rows are all 0."""
+        n = self.num_envs
+        groups = {"policy": self.policy_observation(), "history": self.history.reshape(n, -1)}
+        if self.privileged is not None:
+            groups.update(self.privileged(self))
+        if self.long_history is not None:
+            groups["long_history"] = self.long_history.reshape(n, -1)
+        diverged = self.physics_diverged
+        alive = ~diverged if diverged.any() else None
+        return {key: zero_invalid(value, alive) for key, value in groups.items()}
+
     def success_info(self) -> dict[str, np.ndarray]:
         """After a step, each (N,): ``success`` (recovered so far), ``upright`` (the success test's pose condition
         now; a humanoid's height condition), ``time_to_recover`` [s] (NaN until recovered), ``diverged``."""
@@ -278,3 +294,12 @@ class ProtocolStarts:
         """New episodes for every environment of ``env``, drawn from ``rng``."""
         env.reset(env.draw_fallen(rng, self.terrain))
         env.begin()
+
+
+def zero_invalid(value: np.ndarray, alive: np.ndarray | None) -> np.ndarray:
+    """``value`` (N, k) with NaN and infinities as zeros, and the rows not ``alive`` (N,) zero (None: all are
+    alive); a float64 ``value`` itself when nothing changes."""
+    if alive is None and value.dtype == np.float64 and np.isfinite(value).all():
+        return value
+    cleaned = np.nan_to_num(value, nan=0.0, posinf=0.0, neginf=0.0)
+    return cleaned if alive is None else np.where(alive[:, None], cleaned, 0.0)

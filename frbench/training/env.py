@@ -7,11 +7,12 @@ the one ``frbench evaluate`` runs) and steps it (action transform, held action,
 the reward `step_reward.StepReward`, the assist force, the fallen starts). This
 module composes the pieces training passes in — the batch's robots and their
 randomised physics (`population`), the action → targets rule (`residual`), held
-actions (`action_hold`), the reward, the assist force (`assist`) — and keeps what
-only training has: the world of terrain tiles and its curriculum, which tile each
-episode starts on, demo and rise starts (`start_sources`, through the core env's
-``drive`` and ``restart``), the observation history and groups, episode
-statistics, and torch tensors.
+actions (`action_hold`), the reward, the assist force (`assist`), the critic's
+and the estimator's observation groups (`observation_groups.PrivilegedGroups`) —
+and keeps what only training has: the world of terrain tiles and its curriculum,
+which tile each episode starts on, demo and rise starts (`start_sources`, through
+the core env's ``drive`` and ``restart``), episode statistics for rsl-rl's log,
+and torch tensors.
 
 N fallen robots on a world of all terrain tiles (`terrain_grid`), each on the
 tile its curriculum level says, with randomised morphologies (or one named
@@ -52,8 +53,8 @@ from frbench.training.config import TrainEnvConfig
 from frbench.training.curriculum import TerrainCurriculum
 from frbench.training.curves import LossLog
 from frbench.training.height_raster import HeightRaster
-from frbench.training.observation_groups import observation_groups
-from frbench.training.population import TrainingRobots, yaw_of
+from frbench.training.observation_groups import PrivilegedGroups
+from frbench.training.population import TrainingRobots
 from frbench.training.residual import ResidualController
 from frbench.training.step_reward import StepReward
 from frbench.training.start_sources import CurriculumStarts
@@ -93,7 +94,8 @@ class RecoveryTrainingEnv(VecEnv):
                             reward=reward, assist=assist, starts=self.starts, rng=self.rng, history=cfg.history,
                             long_history=cfg.long_history, episode_steps=cfg.episode_steps,
                             variants=self.robots.variants, ground_height=self._ground_height,
-                            nominal_height=self.robots.nominal_height, track_metrics=False, surface_rules=False)
+                            nominal_height=self.robots.nominal_height, track_metrics=False, surface_rules=False,
+                            privileged=PrivilegedGroups(self.raster, self.starts, self.robots))
         self.last_episode_stats: dict[str, float] = {}
         #: each reward term's mean per env step since the learning curve's last row (``reward_<term>``)
         self.reward_means = LossLog(prefix="reward_")
@@ -146,18 +148,11 @@ class RecoveryTrainingEnv(VecEnv):
         return self.raster.lookup(self.starts.tile_row, xy[:, None, :])[:, 0]
 
     # ------------------------------------------------------------------ observations
-    def _observations(self, o_t: np.ndarray) -> TensorDict:
-        """The core env's state as rsl-rl's observation groups (float32 tensors, `observation_groups`)."""
-        core = self.core
-        s = core.state
-        scan = self.raster.scan(self.starts.tile_row, s.base_pos, yaw_of(s.base_quat))
-        return observation_groups(o_t, core.history, core.long_history, s, core.contacts, core.params,
-                                  self.robots.env_masses, self.robots.com_xy(s, core.whole_body_com()), scan,
-                                  core.physics_diverged)
-
     def get_observations(self) -> TensorDict:
-        """The current observation groups."""
-        return self._observations(self.core.policy_observation())
+        """The core env's observation groups (`CoreEnv.observation_groups`) as float32 tensors."""
+        groups = self.core.observation_groups()
+        return TensorDict({k: torch.as_tensor(v, dtype=torch.float32) for k, v in groups.items()},
+                          batch_size=[self.num_envs])
 
     # ------------------------------------------------------------------ stepping
     def step(self, actions: torch.Tensor):
@@ -175,7 +170,7 @@ class RecoveryTrainingEnv(VecEnv):
             log.update({f"/episode/{k}": v for k, v in self.last_episode_stats.items()})
             log.update({f"/curriculum/{k}": float(v) for k, v in self.curriculum.stats().items()})
             self._new_episodes()
-        obs = self._observations(self.core.policy_observation())
+        obs = self.get_observations()
         dones = torch.full((n,), bool(done))
         extras = {"time_outs": torch.full((n,), bool(done)), "log": log}
         return obs, torch.as_tensor(reward, dtype=torch.float32), dones, extras
