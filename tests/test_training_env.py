@@ -398,6 +398,9 @@ def test_a_base_force_of_one_and_a_half_weights_lifts_the_robot_at_half_g(backen
         vz = sim.state().base_linvel[:, 2]
         assert vz[0] == pytest.approx(0.5 * 9.81 * 0.1, rel=0.03)   # + half g
         assert vz[1] == pytest.approx(-9.81 * 0.1, rel=0.03)        # free fall
+        # the force is no contact (MuJoCo's cfrc_ext holds xfrc_applied; the backend takes it out)
+        contacts = sim.contacts()
+        assert not contacts.group_contact.any() and float(contacts.norm.max()) < 1e-6
         with pytest.raises(ValueError, match=r"expected a finite \(2, 3\) array"):
             sim.set_base_force(np.zeros(3))
     finally:

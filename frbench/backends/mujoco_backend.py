@@ -245,8 +245,12 @@ class MujocoBackend:
         return masses.sum(axis=1), self.whole_body_com()
 
     def contacts(self) -> Contacts:
-        """Net contact force per link from ``cfrc_ext`` (world frame), summarised by group."""
+        """Net contact force per link from ``cfrc_ext`` (world frame), summarised by group. MuJoCo's ``cfrc_ext``
+        also holds ``xfrc_applied``: the base force (`set_base_force`) is taken out again, so that an assist
+        force is no contact (as in PyBullet, whose contacts are contact points)."""
         link_force = np.array(self._cfrc_ext[:, self._link_body, 3:6])
+        if self._base_force.any():
+            link_force[:, 0] -= self._base_force
         return summarize_contacts(self.spec, self.link_names, link_force)
 
     def close(self) -> None:
