@@ -138,7 +138,8 @@ def plot_training(runs: list[Path], out: Path, metrics=("success_flat", "success
         if metric.startswith("success"):
             ax.set_ylim(0, 1)
         ax.grid(alpha=0.3)
-    axes[0][0].legend(loc="upper left", fontsize="small")
+    if axes[0][0].get_legend_handles_labels()[0]:  # a run without rows yet draws no line
+        axes[0][0].legend(loc="upper left", fontsize="small")
     fig.tight_layout()
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
