@@ -64,7 +64,7 @@ class CoreEnv:
         rng: the seeded generator every start is drawn from (`seed` replaces it).
         history, long_history: policy observations kept (H, T; None / 0: none kept).
         episode_steps: control steps per episode.
-        privileged: ``privileged(env) -> {group: (N, ·) array}``, the groups beyond proprioception that
+        privileged: ``privileged(env, o_t) -> {group: (N, ·) array}``, the groups beyond proprioception that
             `observation_groups` adds (training's `frbench.training.observation_groups.PrivilegedGroups`), or None.
         variants, noise_rng, ground_height, nominal_height, track_metrics, surface_rules: as in `make_backend`
             and `RecoveryTask`.
@@ -253,9 +253,10 @@ class CoreEnv:
         the groups of ``privileged``, ``long_history`` (N, T·D; with ``long_history`` > 0). NaN and infinities
         become 0, and a diverged simulation's rows are all 0."""
         n = self.num_envs
-        groups = {"policy": self.policy_observation(), "history": self.history.reshape(n, -1)}
+        o_t = self.policy_observation()
+        groups = {"policy": o_t, "history": self.history.reshape(n, -1)}
         if self.privileged is not None:
-            groups.update(self.privileged(self))
+            groups.update(self.privileged(self, o_t))
         if self.long_history is not None:
             groups["long_history"] = self.long_history.reshape(n, -1)
         diverged = self.physics_diverged

@@ -29,15 +29,16 @@ class PrivilegedGroups:
     def __init__(self, raster, starts, robots):
         self.raster, self.starts, self.robots = raster, starts, robots
 
-    def __call__(self, env) -> dict[str, np.ndarray]:
-        """Each group (N, ·) float64 of the core env ``env`` now (see the module docstring)."""
+    def __call__(self, env, o_t: np.ndarray) -> dict[str, np.ndarray]:
+        """Each group (N, ·) float64 of the core env ``env`` now, its policy observation ``o_t`` (N, 6 + 3J) given
+        (see the module docstring)."""
         s, c, p = env.state, env.contacts, env.params
         scan = self.raster.scan(self.starts.tile_row, s.base_pos, yaw_of(s.base_quat))
         masses = self.robots.env_masses
         com_xy = self.robots.com_xy(s, env.whole_body_com())
         contact = c.group_contact.astype(float)
         privileged = np.concatenate([
-            env.policy_observation(), np.clip(scan, -1.0, 1.0), masses, p.kp, p.kd, com_xy,
+            o_t, np.clip(scan, -1.0, 1.0), masses, p.kp, p.kd, com_xy,
             contact, np.minimum(c.foot_force, 500.0) / 100.0, p.friction[:, None],
         ], axis=1)
         velocity = rotate_to_body(s.base_quat, s.base_linvel)
