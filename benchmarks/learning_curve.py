@@ -18,6 +18,13 @@ Run (three seeds side by side; ``--jobs 1`` trains them one after another)::
 
 Prints one row per seed and mark, then per mark the mean and the minimum over the seeds, then
 ``reached target: K/N seeds`` (flat success >= ``--target`` at the last mark).
+
+The logged rate mixes in the exploration noise and holds about 30 flat episodes per logged row.
+``--deterministic R`` also runs each seed's final policy with its mean action in its own training env for R
+rounds (`frbench.analysis.training_env.training_env_success`, the env seeded with the run's seed: its robots,
+R x 256 episodes) and prints the same flat / all success, its mean and minimum and the seeds at the target::
+
+    python benchmarks/learning_curve.py --out runs/lc-symmetry --report --deterministic 2
 """
 
 from __future__ import annotations
@@ -103,6 +110,25 @@ def report(out: Path, seeds: list[int], target: float, marks=MARKS) -> int:
     return reached
 
 
+def report_deterministic(out: Path, seeds: list[int], target: float, rounds: int) -> int:
+    """Print each seed's final policy's flat / all success with its mean action in its training env (``rounds``
+    rounds); returns how many seeds reach ``target`` on flat ground."""
+    from frbench.analysis.training_env import training_env_success
+
+    flat, overall = [], []
+    print(f"deterministic policy in its training env, {rounds} round(s) (success flat / all)")
+    for seed in seeds:
+        rates = training_env_success(out / f"seed{seed}", episodes=rounds, seed=seed)
+        flat.append(rates.get("success_flat", float("nan")))
+        overall.append(rates["success_all"])
+        print(f"{seed:>4}   {flat[-1]:.3f}/{overall[-1]:.3f}")
+    print(f"mean   {sum(flat) / len(flat):.3f}/{sum(overall) / len(overall):.3f}")
+    print(f" min   {min(flat):.3f}/{min(overall):.3f}")
+    reached = sum(f >= target for f in flat)
+    print(f"reached target (deterministic): {reached}/{len(seeds)} seeds (flat >= {target:g})")
+    return reached
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", type=Path, required=True, help="folder of the seeds' run folders")
@@ -117,11 +143,15 @@ def main(argv=None) -> int:
     parser.add_argument("--report", action="store_true", help="print the table of the existing runs only")
     parser.add_argument("--marks", default=",".join(f"{m:g}" for m in MARKS),
                         help="env-step marks of the table (comma-separated), the last one the target's")
+    parser.add_argument("--deterministic", type=int, default=0, metavar="ROUNDS",
+                        help="also run each seed's final policy without exploration noise for ROUNDS rounds")
     args = parser.parse_args(argv)
     seeds = [int(s) for s in args.seeds.split(",")]
     if not args.report:
         train_all(args, seeds)
     report(args.out, seeds, args.target, tuple(float(m) for m in args.marks.split(",")))
+    if args.deterministic:
+        report_deterministic(args.out, seeds, args.target, args.deterministic)
     return 0
 
 
