@@ -7,7 +7,7 @@ the command line's own flags and ``--set FIELD=VALUE`` apply on top of it. Budge
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from types import MappingProxyType
 from typing import Mapping
 
@@ -61,26 +61,31 @@ class Preset:
         return overrides or None
 
 
+#: The shipped frnet's starts: half the episodes along the scripted getting-up motion.
+_DEMO_STARTS = MappingProxyType({"demo_start_fraction": 0.5})
+#: ``symmetry-entropy``, which ``symmetry-assist`` extends.
+_SYMMETRY_ENTROPY = Preset(
+    "symmetry with entropy coefficient 0.01 (rsl-rl's and MuJoCo Playground's getup value) instead of 0.005",
+    env=_DEMO_STARTS, symmetry=True, algorithm=MappingProxyType({"entropy_coef": 0.01}))
+
 PRESETS: Mapping[str, Preset] = MappingProxyType({
     "paper": Preset("random morphologies on all terrains, the paper's setup (the defaults)"),
     "demo-starts": Preset(
         "paper setup, half the episodes starting along the scripted getting-up motion, annealed to 0 "
         "(the shipped frnet and the 3.07 M budget runs)",
-        env=MappingProxyType({"demo_start_fraction": 0.5})),
+        env=_DEMO_STARTS),
     "symmetry": Preset(
         "demo-starts with rsl-rl's symmetry augmentation: each PPO mini-batch also holds its left/right mirror",
-        env=MappingProxyType({"demo_start_fraction": 0.5}), symmetry=True),
-    "symmetry-entropy": Preset(
-        "symmetry with entropy coefficient 0.01 (rsl-rl's and MuJoCo Playground's getup value) instead of 0.005",
-        env=MappingProxyType({"demo_start_fraction": 0.5}), symmetry=True,
-        algorithm=MappingProxyType({"entropy_coef": 0.01})),
-    "symmetry-assist": Preset(
-        "symmetry-entropy with HoST's assist force on quadrupeds: 0.4 x the weight, falling to 0 at 2.5 M env steps",
-        env=MappingProxyType({"demo_start_fraction": 0.5, "assist_force": 0.4, "assist_until": 2.5e6}),
-        symmetry=True, algorithm=MappingProxyType({"entropy_coef": 0.01})),
+        env=_DEMO_STARTS, symmetry=True),
+    "symmetry-entropy": _SYMMETRY_ENTROPY,
+    "symmetry-assist": replace(
+        _SYMMETRY_ENTROPY,
+        description="symmetry-entropy with HoST's assist force on quadrupeds: 0.4 x the weight, falling to 0 at "
+                    "2.5 M env steps",
+        env=MappingProxyType({**_SYMMETRY_ENTROPY.env, "assist_force": 0.4, "assist_until": 2.5e6})),
     "no-stability": Preset(
         "demo-starts without the stability reward terms (the frnet-no-stability ablation)",
-        env=MappingProxyType({"demo_start_fraction": 0.5}), drop_terms=STABILITY_TERMS),
+        env=_DEMO_STARTS, drop_terms=STABILITY_TERMS),
     "g1-residual": Preset(
         "G1 on flat ground: a gated residual over the keyframe-humanoid key frames, actions held 10 steps",
         env=MappingProxyType({
