@@ -67,6 +67,30 @@ def test_resume_with_other_settings_is_refused(tmp_path):
     assert not (tmp_path / "x").exists()
 
 
+
+def test_extra_data_joins_the_training_set(tmp_path):
+    """``extra_data``: another run's shards join each student's training set; a run of other frames is refused."""
+    one = DistillConfig(**{**TINY.__dict__, "rounds": 1})
+    run_distillation(tmp_path / "a", one, log=lambda line: None)
+    joined = run_distillation(tmp_path / "b", DistillConfig(**{**one.__dict__, "extra_data": (str(tmp_path / "a"),)}),
+                              log=lambda line: None)
+    assert joined["dataset"]["samples"] == 6 and joined["rounds"][0]["training"]["samples"] == 12
+    record = json.loads((tmp_path / "b" / "checkpoints" / "round0.config.json").read_text())
+    assert record["distill"]["dataset"]["episodes"] == 2 and record["distill"]["extra_data"] == [str(tmp_path / "a")]
+    args = ["distill", "--out", str(tmp_path / "c"), "--rounds", "1", "--episodes-per-round", "1", "--steps", "6",
+            "--simulators", "mujoco", "--teacher-settings", "samples=4,horizon=0.1,knots=2", "--batch", "1"]
+    assert main([*args, "--frames", "3", "--extra-data", str(tmp_path / "a")]) == 2  # a has 2 frames
+    assert main([*args, "--frames", "2", "--extra-data", str(tmp_path / "missing")]) == 2
+    assert not (tmp_path / "c" / "data").exists()
+    assert main([*args, "--frames", "2", "--hidden", "16,16", "--epochs", "2", "--start-seed", "5000",
+                 "--extra-data", str(tmp_path / "a")]) == 0
+    assert read_meta(shard_path(tmp_path / "c", 0, 0, 0))["start_seed"] == 5000
+    assert json.loads((tmp_path / "c" / "training.json").read_text())["0"]["samples"] == 12
+    # settings stored before extra_data existed lack it: they count as its default, not as stale
+    older = {k: v for k, v in distill._training_settings(one).items() if k != "extra_data"}
+    assert not distill._stale(older, one) and distill._stale({**older, "epochs": 3}, one)
+    assert distill._stale(older, DistillConfig(**{**one.__dict__, "extra_data": ("x",)}))
+
 def test_checkpoint_loads_as_learned_policy_with_the_students_inputs(tmp_path):
     """The saved student acts through `LearnedPolicy` exactly as it acted during DAgger."""
     run_distillation(tmp_path, DistillConfig(**{**TINY.__dict__, "rounds": 1}), log=lambda line: None)

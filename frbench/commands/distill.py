@@ -25,6 +25,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--episodes-per-round", type=int, default=32)
     p.add_argument("--batch", type=int, default=2, help="episodes run side by side in one simulator")
     p.add_argument("--steps", type=int, default=250, help="control steps per episode (0.02 s each)")
+    p.add_argument("--start-seed", type=int, default=1000,
+                   help="start seed of round r, batch b: START_SEED + 1000·r + b (keep it away from evaluation seeds)")
     p.add_argument("--beta", type=float, default=0.0, help="DAgger rounds: fraction of episodes the teacher acts")
     p.add_argument("--frames", type=int, default=3, help="observation history frames of the student")
     p.add_argument("--hidden", default="256,256,128", help="the student MLP's hidden widths")
@@ -32,6 +34,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--input-noise", type=float, default=0.0,
                    help="training input noise, a fraction of each input's spread (default 0)")
     p.add_argument("--weight-decay", type=float, default=0.0, help="AdamW weight decay (default 0)")
+    p.add_argument("--extra-data", default="", metavar="RUN,...",
+                   help="run folders of earlier distillations whose data, all rounds, join the training set "
+                        "(a training setting)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--jobs", type=int, default=1, help="processes running batches")
     p.set_defaults(func=run)
@@ -58,8 +63,10 @@ def run(args) -> int:
     config = DistillConfig(teacher=args.teacher, teacher_settings=args.teacher_settings, robot=args.robot,
                            terrain=args.terrain, level=args.level, simulators=simulators, rounds=args.rounds,
                            episodes_per_round=args.episodes_per_round, batch=args.batch, steps=args.steps,
+                           start_seed=args.start_seed,
                            beta=args.beta, frames=args.frames, hidden=hidden, epochs=args.epochs,
-                           input_noise=args.input_noise, weight_decay=args.weight_decay, seed=args.seed)
+                           input_noise=args.input_noise, weight_decay=args.weight_decay, seed=args.seed,
+                           extra_data=tuple(r.strip() for r in args.extra_data.split(",") if r.strip()))
     progress = run_distillation(args.out, config, jobs=args.jobs, log=lambda line: print(line, flush=True))
     data = progress["dataset"]
     print(f"dataset: {data['episodes']} episodes, {data['samples']} samples, {data['cpu_s']:.0f} teacher CPU s; "

@@ -21,7 +21,9 @@ A run folder holds:
 A killed run resumes where it stopped: batches whose shards all exist are not rerun. When the training
 settings (`TRAINING_FIELDS`) change on resume, only the students still to act (the last round with data,
 and the final one) are retrained; earlier ones stay as the students that collected the next round.
-Batches run in ``jobs`` processes.
+``extra_data`` names run folders of earlier distillations (same teacher, robot and history frames) whose
+shards, all rounds, join every student's training set; it is a training setting. Batches run in ``jobs``
+processes.
 """
 
 from __future__ import annotations
@@ -72,6 +74,7 @@ class DistillConfig:
     weight_decay: float = 0.0
     input_noise: float = 0.0  # training: input noise, a fraction of each input's spread in the dataset
     blind_to_previous_action: bool = False  # training: the normaliser hides a_{t−1} from the student
+    extra_data: tuple[str, ...] = ()  # training: other distillation run folders whose shards join the training set
     seed: int = 0
 
     def __post_init__(self):
@@ -251,11 +254,20 @@ def _write_progress(run: Path, config: DistillConfig, trained: dict) -> dict:
 
 #: Fields that change only the student's training: a resumed run may change them (its students are retrained).
 TRAINING_FIELDS = ("rounds", "hidden", "epochs", "minibatch", "learning_rate", "weight_decay", "input_noise",
-                   "blind_to_previous_action")
+                   "blind_to_previous_action", "extra_data")
 
 
 def _training_settings(config: DistillConfig) -> dict:
     return {k: v for k, v in config.as_dict().items() if k in TRAINING_FIELDS and k != "rounds"}
+
+
+def _stale(stored: dict | None, config: DistillConfig) -> bool:
+    """Whether a student trained with the ``stored`` training settings differs from ``config``'s (a setting
+    the stored ones lack, from a run older than it, counts as its default)."""
+    if stored is None:
+        return True
+    defaults = _training_settings(DistillConfig())
+    return any(stored.get(k, defaults[k]) != v for k, v in _training_settings(config).items())
 
 
 def _check_config(run: Path, config: DistillConfig) -> None:
@@ -267,7 +279,43 @@ def _check_config(run: Path, config: DistillConfig) -> None:
         if changed:
             raise FrbenchError(f"{path}: the run was made with other settings ({', '.join(changed)}); "
                                "use a new --out or the same settings")
+    for other in config.extra_data:
+        if Path(other).resolve() == Path(run).resolve():
+            raise FrbenchError(f"--extra-data {other}: that is this run's own folder")
+        _extra_rounds(Path(other), config)
     atomic_write_text(path, json.dumps(config.as_dict(), indent=1) + "\n")
+
+
+#: Settings an extra run (`DistillConfig.extra_data`) must share with the run it joins.
+SHARED_FIELDS = ("teacher", "robot", "frames")
+
+
+def _extra_rounds(other: Path, config: DistillConfig) -> int:
+    """The last round with data of the run folder ``other``; a FrbenchError when it is not a distillation run
+    of the same teacher, robot and history frames, or has no shards."""
+    path = other / "config.json"
+    if not path.is_file():
+        raise FrbenchError(f"--extra-data {other}: no distillation run there (expected {path})")
+    try:
+        stored = json.loads(path.read_text())
+    except ValueError as error:
+        raise FrbenchError(f"--extra-data {path}: not a JSON run config ({error})") from None
+    for name in SHARED_FIELDS:
+        if stored.get(name) != getattr(config, name):
+            raise FrbenchError(f"--extra-data {path}: {name} is {stored.get(name)!r}, this run's is "
+                               f"{getattr(config, name)!r}")
+    rounds = [r for r in range(int(stored.get("rounds", 0))) if any((other / "data" / f"round{r}").glob("*.npz"))]
+    if not rounds:
+        raise FrbenchError(f"--extra-data {other}: no dataset shards under {other / 'data'}")
+    return max(rounds)
+
+
+def _training_data(run: Path, config: DistillConfig, round_index: int):
+    """Rounds 0..``round_index`` of ``run`` and every round of the ``extra_data`` runs: (obs, history, actions,
+    metas) as `load_rounds` returns them, this run's first."""
+    parts = [load_rounds(run, round_index)]
+    parts += [load_rounds(Path(other), _extra_rounds(Path(other), config)) for other in config.extra_data]
+    return (*(np.concatenate([part[k] for part in parts]) for k in range(3)), [m for part in parts for m in part[3]])
 
 
 def run_distillation(run: Path, config: DistillConfig, jobs: int = 1, log=print) -> dict:
@@ -279,10 +327,10 @@ def run_distillation(run: Path, config: DistillConfig, jobs: int = 1, log=print)
     for r in range(config.rounds):
         _collect_round(run, config, r, jobs, log)
         checkpoint = run / "checkpoints" / f"round{r}.pt"
-        stale = trained.get(r, {}).get("settings") != _training_settings(config)
+        stale = _stale(trained.get(r, {}).get("settings"), config)
         # a student whose successor round is complete is kept as it was: it collected that round's data
         if not checkpoint.is_file() or (stale and (r == config.rounds - 1 or _pending(run, config, r + 1))):
-            obs, history, actions, metas = load_rounds(run, r)
+            obs, history, actions, metas = _training_data(run, config, r)
             cpu = time.process_time()
             actor, loss = train_student(obs, history, actions, config, r)
             dataset = {"episodes": len(metas), "samples": int(len(obs)),
