@@ -25,6 +25,13 @@ rounds (`frbench.analysis.training_env.training_env_success`, the env seeded wit
 R x 256 episodes) and prints the same flat / all success, its mean and minimum and the seeds at the target::
 
     python benchmarks/learning_curve.py --out runs/lc-symmetry --report --deterministic 2
+
+Training success is measured on the training env's sampled morphologies and gains, not on the benchmark's
+robots. ``--evaluate E`` also scores each seed's final policy with ``frbench evaluate`` on Go2, flat level 1,
+evaluation seeds 0-3 × E episodes per simulator (protocol 1.1; the results beside the run,
+``OUT/seed<S>/eval-go2-flat.json``) and prints the successes per simulator::
+
+    python benchmarks/learning_curve.py --out runs/lc-symmetry --report --evaluate 8
 """
 
 from __future__ import annotations
@@ -129,6 +136,28 @@ def report_deterministic(out: Path, seeds: list[int], target: float, rounds: int
     return reached
 
 
+def report_evaluation(out: Path, seeds: list[int], episodes: int) -> None:
+    """Print each seed's final policy's successes on Go2, flat level 1 (`frbench evaluate`, seeds 0-3 ×
+    ``episodes`` per simulator), per simulator and with a 95 % Wilson interval on both together."""
+    from frbench.evaluation.intervals import wilson_interval
+
+    print(f"frbench evaluate, go2, flat level 1, seeds 0-3 x {episodes} episodes (successes per simulator)")
+    for seed in seeds:
+        result = out / f"seed{seed}" / "eval-go2-flat.json"
+        command = [sys.executable, "-m", "frbench", "evaluate", "--policy", str(out / f"seed{seed}" / "policy.pt"),
+                   "--robots", "go2", "--terrains", "flat", "--levels", "1", "--seeds", "0,1,2,3",
+                   "--episodes", str(episodes), "--jobs", "1", "--out", str(result)]
+        subprocess.run(command, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        episodes_run = json.loads(result.read_text())["episodes"]
+        cells = []
+        for backend in ("mujoco", "pybullet"):
+            mine = [e["success"] for e in episodes_run if e["backend"] == backend]
+            cells.append(f"{backend} {sum(mine)}/{len(mine)}")
+        wins = sum(e["success"] for e in episodes_run)
+        low, high = wilson_interval(wins, len(episodes_run))
+        print(f"{seed:>4}   {', '.join(cells)}; both {wins / len(episodes_run):.3f} [{low:.3f}, {high:.3f}]")
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", type=Path, required=True, help="folder of the seeds' run folders")
@@ -145,6 +174,8 @@ def main(argv=None) -> int:
                         help="env-step marks of the table (comma-separated), the last one the target's")
     parser.add_argument("--deterministic", type=int, default=0, metavar="ROUNDS",
                         help="also run each seed's final policy without exploration noise for ROUNDS rounds")
+    parser.add_argument("--evaluate", type=int, default=0, metavar="EPISODES",
+                        help="also score each seed's final policy on Go2 flat level 1 (EPISODES per cell)")
     args = parser.parse_args(argv)
     seeds = [int(s) for s in args.seeds.split(",")]
     if not args.report:
@@ -152,6 +183,8 @@ def main(argv=None) -> int:
     report(args.out, seeds, args.target, tuple(float(m) for m in args.marks.split(",")))
     if args.deterministic:
         report_deterministic(args.out, seeds, args.target, args.deterministic)
+    if args.evaluate:
+        report_evaluation(args.out, seeds, args.evaluate)
     return 0
 
 
