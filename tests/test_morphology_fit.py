@@ -1,0 +1,73 @@
+"""`frbench.robots.morphology_fit`: the URDF measurement inverts the morphology generator, and reads the
+installed Go1/Go2 files as their URDFs state."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from frbench.errors import RobotFileError
+from frbench.robots import get_robot
+from frbench.robots.morphology import MORPHOLOGY_RANGES, sample
+from frbench.robots.morphology_fit import measure_morphology
+from frbench.robots.morphology_presets import LITE3_LIKE, SPOT_LIKE
+from frbench.robots.morphology_urdf import cached_spec
+from frbench.robots.urdf_tree import parse_urdf
+
+
+def _assert_inverts(fit, params) -> None:
+    for name in MORPHOLOGY_RANGES:
+        assert fit.values[name] == pytest.approx(getattr(params, name), rel=1e-9, abs=1e-12), name
+    assert fit.foot_mass == pytest.approx(params.foot_mass, rel=1e-9)
+
+
+@pytest.mark.parametrize("robot, params", [("spot_like", SPOT_LIKE), ("lite3_like", LITE3_LIKE)])
+def test_presets_measure_back_to_their_params(robot, params):
+    fit = measure_morphology(get_robot(robot))
+    _assert_inverts(fit, params)
+    assert fit.sources["trunk_length"] == "box" and fit.sources["calf_width"] == "box"
+
+
+def test_sampled_morphology_with_shifted_com_measures_back(tmp_path):
+    params = dataclasses.replace(sample(np.random.default_rng(7)), trunk_com_shift=(0.02, -0.01, 0.005))
+    fit = measure_morphology(cached_spec(params, "sampled", tmp_path / "sampled.urdf"))
+    _assert_inverts(fit, params)
+    # The draw differs from the defaults, so the check is not comparing defaults with defaults.
+    assert fit.values["trunk_mass"] != pytest.approx(6.921, abs=0.01)
+
+
+def test_go2_masses_and_lengths_from_its_urdf():
+    spec = get_robot("go2")
+    links = parse_urdf(spec.urdf_path).links
+    assert links["base"].mass == pytest.approx(6.921)  # the MorphologyParams docstring's value: base link alone
+    fit = measure_morphology(spec)
+    # Trunk = base + the four hip-motor rotors fixed to it (0.089 kg each) + imu and radar (0 kg).
+    assert fit.values["trunk_mass"] == pytest.approx(6.921 + 4 * 0.089, abs=1e-9)
+    assert fit.values["hip_mass"] == pytest.approx(0.678 + 0.089, abs=1e-9)  # + thigh rotor
+    assert fit.values["thigh_mass"] == pytest.approx(1.152 + 0.089, abs=1e-9)  # + calf rotor
+    assert fit.values["calf_mass"] == pytest.approx(0.154, abs=1e-9)
+    assert fit.foot_mass == pytest.approx(0.04, abs=1e-9)
+    assert fit.values["hip_length"] == pytest.approx(0.0955, abs=1e-9)
+    assert fit.values["thigh_length"] == pytest.approx(0.213, abs=1e-9)
+    assert fit.values["calf_length"] == pytest.approx(0.213, abs=1e-9)
+    # Go2's collisions are convex meshes: sizes come from their vertex bounds.
+    assert fit.sources["trunk_length"] == "mesh bounds"
+    assert 0.40 < fit.values["trunk_length"] < 0.55 and 0.15 < fit.values["trunk_width"] < 0.25
+
+
+def test_go1_rotated_thigh_box_reads_as_width_and_height():
+    fit = measure_morphology(get_robot("go1"))
+    # The file's thigh box is 0.213 × 0.0245 × 0.034 turned by pi/2 about y: x = 0.034, y = 0.0245.
+    assert fit.values["thigh_width"] == pytest.approx(0.0245, abs=1e-9)
+    assert fit.values["thigh_height"] == pytest.approx(0.034, abs=1e-9)
+    trunk = [fit.values[f"trunk_{k}"] for k in ("length", "width", "height")]
+    assert trunk == pytest.approx([0.3762, 0.0935, 0.114], abs=1e-9)
+    assert fit.values["hip_length"] == pytest.approx(0.08, abs=1e-9)
+
+
+def test_non_quadruped_is_refused():
+    spec = get_robot("go1").replace(kind="humanoid")
+    with pytest.raises(RobotFileError, match="'go1'.*quadruped"):
+        measure_morphology(spec)
