@@ -68,6 +68,24 @@ _SYMMETRY_ENTROPY = Preset(
     "symmetry with entropy coefficient 0.01 (rsl-rl's and MuJoCo Playground's getup value) instead of 0.005",
     env=_DEMO_STARTS, symmetry=True, algorithm=MappingProxyType({"entropy_coef": 0.01}))
 
+#: ``symmetry-assist``, which ``symmetry-assist-cover`` extends.
+_SYMMETRY_ASSIST = replace(
+    _SYMMETRY_ENTROPY,
+    description="symmetry-entropy with HoST's assist force on quadrupeds: 0.4 x the weight, falling to 0 at "
+                "2.5 M env steps",
+    env=MappingProxyType({**_SYMMETRY_ENTROPY.env, "assist_force": 0.4, "assist_until": 2.5e6}))
+#: Rows of the paper's morphology table widened towards the benchmark's five quadrupeds, as
+#: `frbench.robots.morphology_fit.measure_morphology` measures them (`benchmarks/morphology_coverage.py`;
+#: field → (low, high) [kg or m]; Go2's limb sizes are its meshes' bounds). All five have a hip → thigh offset
+#: of 0.08-0.11 m (the table: 0.03-0.05). Two rows stop short of Spot-like: thigh width at 0.08 m (0.12 m),
+#: because wider thighs on short hip offsets overlap the trunk at the standing pose and change the robot's
+#: self-collision exclusions, which the batched MuJoCo variants must share; calf height at 0.045 m (0.074 m),
+#: because wider, three in four sampled robots could not stand at the lowest training gains.
+COVERING_MORPHOLOGY_RANGES = MappingProxyType({
+    "trunk_length": (0.37, 0.90), "trunk_height": (0.11, 0.21), "hip_mass": (0.30, 2.0), "hip_length": (0.05, 0.115),
+    "thigh_length": (0.20, 0.35), "thigh_width": (0.02, 0.08), "thigh_height": (0.03, 0.10),
+    "calf_width": (0.016, 0.046), "calf_height": (0.013, 0.045)})
+
 PRESETS: Mapping[str, Preset] = MappingProxyType({
     "paper": Preset("random morphologies on all terrains, the paper's setup (the defaults)"),
     "demo-starts": Preset(
@@ -78,11 +96,12 @@ PRESETS: Mapping[str, Preset] = MappingProxyType({
         "demo-starts with rsl-rl's symmetry augmentation: each PPO mini-batch also holds its left/right mirror",
         env=_DEMO_STARTS, symmetry=True),
     "symmetry-entropy": _SYMMETRY_ENTROPY,
-    "symmetry-assist": replace(
-        _SYMMETRY_ENTROPY,
-        description="symmetry-entropy with HoST's assist force on quadrupeds: 0.4 x the weight, falling to 0 at "
-                    "2.5 M env steps",
-        env=MappingProxyType({**_SYMMETRY_ENTROPY.env, "assist_force": 0.4, "assist_until": 2.5e6})),
+    "symmetry-assist": _SYMMETRY_ASSIST,
+    "symmetry-assist-cover": replace(
+        _SYMMETRY_ASSIST,
+        description="symmetry-assist with the morphology table widened to hold the benchmark's quadrupeds "
+                    "(benchmarks/morphology_coverage.py)",
+        env=MappingProxyType({**_SYMMETRY_ASSIST.env, "morphology_ranges": COVERING_MORPHOLOGY_RANGES})),
     "no-stability": Preset(
         "demo-starts without the stability reward terms (the frnet-no-stability ablation)",
         env=_DEMO_STARTS, drop_terms=STABILITY_TERMS),
