@@ -32,6 +32,12 @@ evaluation seeds 0-3 × E episodes per simulator (protocol 1.1; the results besi
 ``OUT/seed<S>/eval-go2-flat.json``) and prints the successes per simulator::
 
     python benchmarks/learning_curve.py --out runs/lc-symmetry --report --evaluate 8
+
+``--evaluate-marks E`` scores, the same way, the policy snapshot (``snapshots/``, one every 0.98 M env steps)
+nearest each of ``--marks``: how the carry-over to Go2 grows with training
+(``OUT/seed<S>/eval-go2-flat-<env steps>.json``, reused on a second report)::
+
+    python benchmarks/learning_curve.py --out runs/lc-symmetry-assist --report --marks 3e6,6e6,9e6 --evaluate-marks 8
 """
 
 from __future__ import annotations
@@ -136,26 +142,67 @@ def report_deterministic(out: Path, seeds: list[int], target: float, rounds: int
     return reached
 
 
-def report_evaluation(out: Path, seeds: list[int], episodes: int) -> None:
-    """Print each seed's final policy's successes on Go2, flat level 1 (`frbench evaluate`, seeds 0-3 ×
-    ``episodes`` per simulator), per simulator and with a 95 % Wilson interval on both together."""
+def evaluate_go2_flat(policy: Path, result: Path, episodes: int, reuse: bool) -> list[dict]:
+    """``frbench evaluate`` of ``policy`` on Go2, flat level 1, evaluation seeds 0-3 × ``episodes`` per simulator,
+    written to ``result`` (kept when ``reuse`` and it holds that many episodes); its episodes."""
+    if reuse and result.is_file():
+        kept = json.loads(result.read_text())["episodes"]
+        if len(kept) == 4 * episodes * 2:
+            return kept
+    command = [sys.executable, "-m", "frbench", "evaluate", "--policy", str(policy), "--robots", "go2",
+               "--terrains", "flat", "--levels", "1", "--seeds", "0,1,2,3", "--episodes", str(episodes),
+               "--jobs", "1", "--out", str(result)]
+    subprocess.run(command, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    return json.loads(result.read_text())["episodes"]
+
+
+def evaluation_cells(episodes_run: list[dict]) -> str:
+    """Successes per simulator and on both together, with a 95 % Wilson interval."""
     from frbench.evaluation.intervals import wilson_interval
 
+    cells = []
+    for backend in ("mujoco", "pybullet"):
+        mine = [e["success"] for e in episodes_run if e["backend"] == backend]
+        cells.append(f"{backend} {sum(mine)}/{len(mine)}")
+    wins = sum(e["success"] for e in episodes_run)
+    low, high = wilson_interval(wins, len(episodes_run))
+    return f"{', '.join(cells)}; both {wins / len(episodes_run):.3f} [{low:.3f}, {high:.3f}]"
+
+
+def report_evaluation(out: Path, seeds: list[int], episodes: int) -> None:
+    """Print each seed's final policy's successes on Go2, flat level 1 (`evaluate_go2_flat`), per simulator and
+    with a 95 % Wilson interval on both together."""
     print(f"frbench evaluate, go2, flat level 1, seeds 0-3 x {episodes} episodes (successes per simulator)")
     for seed in seeds:
-        result = out / f"seed{seed}" / "eval-go2-flat.json"
-        command = [sys.executable, "-m", "frbench", "evaluate", "--policy", str(out / f"seed{seed}" / "policy.pt"),
-                   "--robots", "go2", "--terrains", "flat", "--levels", "1", "--seeds", "0,1,2,3",
-                   "--episodes", str(episodes), "--jobs", "1", "--out", str(result)]
-        subprocess.run(command, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        episodes_run = json.loads(result.read_text())["episodes"]
-        cells = []
-        for backend in ("mujoco", "pybullet"):
-            mine = [e["success"] for e in episodes_run if e["backend"] == backend]
-            cells.append(f"{backend} {sum(mine)}/{len(mine)}")
-        wins = sum(e["success"] for e in episodes_run)
-        low, high = wilson_interval(wins, len(episodes_run))
-        print(f"{seed:>4}   {', '.join(cells)}; both {wins / len(episodes_run):.3f} [{low:.3f}, {high:.3f}]")
+        folder = out / f"seed{seed}"
+        run = evaluate_go2_flat(folder / "policy.pt", folder / "eval-go2-flat.json", episodes, reuse=False)
+        print(f"{seed:>4}   {evaluation_cells(run)}")
+
+
+def snapshot_at(folder: Path, mark: float) -> Path | None:
+    """The run's policy snapshot (``snapshots/policy_<env steps>.pt``) nearest to ``mark`` env steps, within half
+    a snapshot interval (0.5 M env steps); None when the run has none there."""
+    snapshots = {int(p.stem.split("_")[1]): p for p in (folder / "snapshots").glob("policy_*.pt")}
+    if not snapshots:
+        return None
+    steps = min(snapshots, key=lambda s: abs(s - mark))
+    return snapshots[steps] if abs(steps - mark) <= 0.5e6 else None
+
+
+def report_evaluation_at_marks(out: Path, seeds: list[int], episodes: int, marks: tuple[float, ...]) -> None:
+    """Print, per seed and mark, the Go2 flat level-1 successes of the policy snapshot nearest the mark
+    (`evaluate_go2_flat`; results in ``OUT/seed<S>/eval-go2-flat-<env steps>.json``, reused when present)."""
+    print(f"frbench evaluate of the snapshots, go2, flat level 1, seeds 0-3 x {episodes} episodes")
+    for seed in seeds:
+        folder = out / f"seed{seed}"
+        for mark in marks:
+            policy = snapshot_at(folder, mark)
+            if policy is None:
+                print(f"{seed:>4}  {mark / 1e6:6.2f} M  no snapshot")
+                continue
+            steps = int(policy.stem.split("_")[1])
+            run = evaluate_go2_flat(policy, folder / f"eval-go2-flat-{steps}.json", episodes, reuse=True)
+            print(f"{seed:>4}  {steps / 1e6:6.2f} M  {evaluation_cells(run)}")
 
 
 def main(argv=None) -> int:
@@ -176,15 +223,20 @@ def main(argv=None) -> int:
                         help="also run each seed's final policy without exploration noise for ROUNDS rounds")
     parser.add_argument("--evaluate", type=int, default=0, metavar="EPISODES",
                         help="also score each seed's final policy on Go2 flat level 1 (EPISODES per cell)")
+    parser.add_argument("--evaluate-marks", type=int, default=0, metavar="EPISODES",
+                        help="also score each seed's policy snapshot nearest each mark on Go2 flat level 1")
     args = parser.parse_args(argv)
     seeds = [int(s) for s in args.seeds.split(",")]
     if not args.report:
         train_all(args, seeds)
-    report(args.out, seeds, args.target, tuple(float(m) for m in args.marks.split(",")))
+    marks = tuple(float(m) for m in args.marks.split(","))
+    report(args.out, seeds, args.target, marks)
     if args.deterministic:
         report_deterministic(args.out, seeds, args.target, args.deterministic)
     if args.evaluate:
         report_evaluation(args.out, seeds, args.evaluate)
+    if args.evaluate_marks:
+        report_evaluation_at_marks(args.out, seeds, args.evaluate_marks, marks)
     return 0
 
 
