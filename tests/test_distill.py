@@ -9,6 +9,7 @@ import pytest
 import torch
 
 from frbench.cli import main
+from frbench.errors import FrbenchError
 from frbench.evaluation.episodes import run_episodes
 from frbench.policies.checkpoint import read_checkpoint
 from frbench.policies.registry import (checkpoint_metadata, describe_checkpoint, load_policy, policy_names,
@@ -158,3 +159,55 @@ def test_checkpoint_metadata_reads_a_file_holding_a_torch_state_dict(tmp_path):
     torch.save({"format": CHECKPOINT_FORMAT, "method": "mpc-distill", "env_steps": 5,
                 "actor_state_dict": torch.nn.Linear(2, 2).state_dict()}, path)
     assert checkpoint_metadata(path) == {"format": CHECKPOINT_FORMAT, "method": "mpc-distill", "env_steps": 5}
+
+
+def _bimodal(groups: int = 8, each: int = 16, joints: int = 29):
+    """``groups`` distinct inputs repeated ``each`` times, labelled +0.5 or −0.5 rad on every joint at random:
+    two answers for the same observation (an average of them, ~0, is neither)."""
+    rng = np.random.default_rng(0)
+    obs = np.repeat(rng.normal(size=(groups, 6 + 3 * joints)), each, axis=0)
+    actions = np.repeat(np.where(rng.random(groups * each) < 0.5, -0.5, 0.5)[:, None], joints, axis=1)
+    return obs, np.tile(obs, 2), actions
+
+
+def test_mixture_student_fits_two_answers_where_mse_averages():
+    from frbench.training.distill_student import train_student
+
+    obs, history, actions = _bimodal()
+    mdn = DistillConfig(**{**TINY.__dict__, "student": "mdn", "components": 3, "minibatch": 32, "hidden": (32, 32)})
+    _, first = train_student(obs, history, actions, DistillConfig(**{**mdn.__dict__, "epochs": 1}), 0)
+    actor, last = train_student(obs, history, actions, DistillConfig(**{**mdn.__dict__, "epochs": 60}), 0)
+    assert np.isfinite(first) and last < first - 20.0  # the NLL [nats per sample] falls
+    chosen = student_actions(actor, obs, history)
+    assert chosen.shape == (128, 29) and np.abs(np.abs(chosen) - 0.5).max() < 0.1  # one of the two answers
+    mse, _ = train_student(obs, history, actions, DistillConfig(**{**mdn.__dict__, "student": "mse", "epochs": 60}), 0)
+    assert np.abs(student_actions(mse, obs, history)).mean() < 0.3  # the MLP's average of them
+
+
+def test_mixture_student_saves_and_acts_deterministically(tmp_path):
+    config = DistillConfig(**{**TINY.__dict__, "rounds": 1, "student": "mdn", "components": 2})
+    run_distillation(tmp_path, config, log=lambda line: None)
+    path = tmp_path / "checkpoints" / "round0.pt"
+    record = json.loads(path.with_suffix(".config.json").read_text())
+    assert record["train_cfg"]["actor"]["class_name"] == "frbench.networks.mixture:MixtureDensityModel"
+    assert record["train_cfg"]["actor"]["components"] == 2 and record["distill"]["student"] == "mdn"
+    trained = json.loads((tmp_path / "training.json").read_text())["0"]
+    assert np.isfinite(trained["loss"]) and trained["mse"] >= 0.0 and trained["settings"]["student"] == "mdn"
+    assert "2-component mixture-density" in read_checkpoint(path)["description"]
+    spec, rng = get_robot("g1"), np.random.default_rng(0)
+    obs = {"base_angvel": rng.normal(size=(2, 3)), "projected_gravity": rng.normal(size=(2, 3)),
+           "joint_pos": rng.normal(size=(2, 29)), "joint_vel": rng.normal(size=(2, 29)),
+           "previous_action": rng.normal(size=(2, 29))}
+    acted = []
+    for policy in (load_policy(str(path)), load_policy(str(path))):
+        policy.reset(spec, 2)
+        acted.append(policy.act(obs))
+    assert acted[0].shape == (2, 29) and np.isfinite(acted[0]).all() and np.array_equal(acted[0], acted[1])
+    tracker = distill.ObservationHistory(spec.default_pose, 2, config.frames)
+    o_t, history = tracker.observe(obs)
+    np.testing.assert_allclose(acted[0] - spec.default_pose, student_actions(build_actor(read_checkpoint(path)),
+                                                                             o_t, history), atol=1e-5)
+    with pytest.raises(FrbenchError, match="student"):
+        DistillConfig(student="gmm")
+    with pytest.raises(FrbenchError, match="components"):
+        DistillConfig(student="mdn", components=0)

@@ -37,6 +37,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--extra-data", default="", metavar="RUN,...",
                    help="run folders of earlier distillations whose data, all rounds, join the training set "
                         "(a training setting)")
+    p.add_argument("--student", default="mse", choices=("mse", "mdn"),
+                   help="mse: an MLP trained by MSE (default); mdn: a mixture density network trained by negative "
+                        "log-likelihood, acting with its most probable component's mean (a training setting)")
+    p.add_argument("--components", type=int, default=5, help="the mdn student's Gaussian components (default 5)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--jobs", type=int, default=1, help="processes running batches")
     p.set_defaults(func=run)
@@ -66,6 +70,7 @@ def run(args) -> int:
                            start_seed=args.start_seed,
                            beta=args.beta, frames=args.frames, hidden=hidden, epochs=args.epochs,
                            input_noise=args.input_noise, weight_decay=args.weight_decay, seed=args.seed,
+                           student=args.student, components=args.components,
                            extra_data=tuple(r.strip() for r in args.extra_data.split(",") if r.strip()))
     progress = run_distillation(args.out, config, jobs=args.jobs, log=lambda line: print(line, flush=True))
     data = progress["dataset"]

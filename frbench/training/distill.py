@@ -44,7 +44,7 @@ from frbench.robot_checks.lookup import get_robot
 from frbench.tasks.initial_states import draw_starts
 from frbench.terrains import make_terrain
 from frbench.training.distill_data import ObservationHistory, load_rounds, read_meta, shard_path, write_shard
-from frbench.training.distill_student import build_actor, save_student, student_actions, train_student
+from frbench.training.distill_student import STUDENTS, build_actor, save_student, student_actions, train_student
 
 #: The teachers `frbench distill` knows.
 TEACHERS = ("mpc",)
@@ -75,12 +75,16 @@ class DistillConfig:
     input_noise: float = 0.0  # training: input noise, a fraction of each input's spread in the dataset
     blind_to_previous_action: bool = False  # training: the normaliser hides a_{t−1} from the student
     extra_data: tuple[str, ...] = ()  # training: other distillation run folders whose shards join the training set
+    student: str = "mse"  # training: "mse" (an MLP, MSE) or "mdn" (a mixture density network, NLL)
+    components: int = 5  # training: the "mdn" student's Gaussian components
     seed: int = 0
 
     def __post_init__(self):
         if self.teacher not in TEACHERS:
             raise FrbenchError(f"--teacher: unknown teacher {self.teacher!r} (known: {', '.join(TEACHERS)})")
-        for name in ("rounds", "episodes_per_round", "batch", "steps", "frames", "epochs", "minibatch"):
+        if self.student not in STUDENTS:
+            raise FrbenchError(f"--student: unknown student {self.student!r} (known: {', '.join(STUDENTS)})")
+        for name in ("rounds", "episodes_per_round", "batch", "steps", "frames", "epochs", "minibatch", "components"):
             if int(getattr(self, name)) < 1:
                 raise FrbenchError(f"{name}: expected a positive integer, got {getattr(self, name)!r}")
         if not 0.0 <= self.beta <= 1.0:
@@ -254,7 +258,7 @@ def _write_progress(run: Path, config: DistillConfig, trained: dict) -> dict:
 
 #: Fields that change only the student's training: a resumed run may change them (its students are retrained).
 TRAINING_FIELDS = ("rounds", "hidden", "epochs", "minibatch", "learning_rate", "weight_decay", "input_noise",
-                   "blind_to_previous_action", "extra_data")
+                   "blind_to_previous_action", "extra_data", "student", "components")
 
 
 def _training_settings(config: DistillConfig) -> dict:
@@ -338,7 +342,11 @@ def run_distillation(run: Path, config: DistillConfig, jobs: int = 1, log=print)
             save_student(checkpoint, actor, config, r, dataset)
             trained[r] = {"samples": int(len(obs)), "loss": loss, "cpu_s": round(time.process_time() - cpu, 1),
                           "checkpoint": str(checkpoint), "settings": _training_settings(config)}
+            fit = f"MSE {loss:.4f} rad²"
+            if config.student == "mdn":  # its loss is the NLL; the MSE of what it acts compares with the MLP's
+                trained[r]["mse"] = float(((student_actions(actor, obs, history) - actions) ** 2).mean())
+                fit = f"NLL {loss:.3f} nats, MSE of its actions {trained[r]['mse']:.4f} rad²"
             atomic_write_text(trained_path, json.dumps(trained, indent=1) + "\n")
-            log(f"round {r}: student trained on {len(obs)} samples of {len(metas)} episodes, MSE {loss:.4f} rad²")
+            log(f"round {r}: student trained on {len(obs)} samples of {len(metas)} episodes, {fit}")
         _write_progress(run, config, trained)
     return _write_progress(run, config, trained)

@@ -1,9 +1,11 @@
 """The distilled student: an rsl-rl MLP actor on the ``policy`` and ``history`` groups, its training and checkpoint.
 
-The actor is `rsl_rl.models.MLPModel` (deterministic output, observation normalisation), the actor of
-frbench's ``ppo`` method, so the checkpoint it is saved in (method ``mpc-distill``, format
-``frbench-policy-v1``) loads as a `frbench.policies.learned.LearnedPolicy`: joint targets
-q* = q̊ + a with action scale 1, every control step.
+The actor (``student`` "mse", the default) is `rsl_rl.models.MLPModel` (deterministic output, observation
+normalisation), the actor of frbench's ``ppo`` method, trained by MSE. With ``student`` "mdn" it is
+`frbench.networks.mixture.MixtureDensityModel` (``components`` Gaussians over the action vector, trained
+by negative log-likelihood; it acts with the mean of its most probable component). Either way the
+checkpoint it is saved in (method ``mpc-distill``, format ``frbench-policy-v1``) loads as a
+`frbench.policies.learned.LearnedPolicy`: joint targets q* = q̊ + a with action scale 1, every control step.
 """
 
 from __future__ import annotations
@@ -20,30 +22,36 @@ from frbench.robot_checks.lookup import get_robot
 #: The checkpoint's training method (its loader: `frbench.policies.learned.load_learned_policy`).
 METHOD = "mpc-distill"
 GROUPS = ["policy", "history"]
+#: The student kinds (``DistillConfig.student``) and their actor classes.
+STUDENTS = {"mse": "rsl_rl.models:MLPModel", "mdn": "frbench.networks.mixture:MixtureDensityModel"}
 
 
-def actor_config(hidden) -> dict:
+def actor_config(hidden, student: str = "mse", components: int = 5) -> dict:
     """The rsl-rl actor config stored in the checkpoint (``train_cfg.actor``)."""
-    return {"class_name": "rsl_rl.models:MLPModel", "hidden_dims": list(hidden), "activation": "elu",
-            "obs_normalization": True}
+    config = {"class_name": STUDENTS[student], "hidden_dims": list(hidden), "activation": "elu",
+              "obs_normalization": True}
+    if student == "mdn":
+        config["components"] = int(components)
+    return config
 
 
-def _new_actor(frame: int, frames: int, num_actions: int, hidden):
+def _new_actor(frame: int, frames: int, num_actions: int, config: dict):
+    """A new actor from an ``actor_config`` dict, for o_t of ``frame`` values and ``frames`` history frames."""
     import torch
-    from rsl_rl.models import MLPModel
+    from rsl_rl.utils import resolve_callable
     from tensordict import TensorDict
 
     dummy = TensorDict({"policy": torch.zeros(1, frame), "history": torch.zeros(1, frames * frame)}, batch_size=[1])
-    config = actor_config(hidden)
-    config.pop("class_name")
-    return MLPModel(dummy, {"actor": GROUPS}, "actor", num_actions, **config)
+    config = dict(config)
+    actor_class = resolve_callable(config.pop("class_name"))
+    return actor_class(dummy, {"actor": GROUPS}, "actor", num_actions, **config)
 
 
 def build_actor(data: dict):
     """The actor (eval mode) of a ``mpc-distill`` checkpoint dict."""
     config = json.loads(data["config_json"])
     frames, num_actions = int(data["history"]), int(data["num_actions"])
-    actor = _new_actor(6 + 3 * num_actions, frames, num_actions, config["train_cfg"]["actor"]["hidden_dims"])
+    actor = _new_actor(6 + 3 * num_actions, frames, num_actions, config["train_cfg"]["actor"])
     actor.load_state_dict(data["actor_state_dict"])
     return actor.eval()
 
@@ -81,17 +89,21 @@ def _blind_previous_action(normalizer, frame: int, num_actions: int) -> None:
 
 
 def train_student(obs: np.ndarray, history: np.ndarray, actions: np.ndarray, config, round_index: int):
-    """A new actor fitted to (obs (M, F), history (M, H·F)) → teacher actions (M, J) [rad] by MSE with Adam:
+    """A new actor fitted to (obs (M, F), history (M, H·F)) → teacher actions (M, J) [rad] with AdamW: by MSE
+    (``config.student`` "mse") or by the mixture's negative log-likelihood ("mdn");
     ``config.epochs`` passes in minibatches of ``config.minibatch``, seeded by (``config.seed``, round).
     The normaliser takes the whole dataset's mean and spread; each minibatch's inputs get Gaussian noise of
     ``config.input_noise`` × that spread (a regulariser against the student's own drift), and AdamW decays the
-    weights by ``config.weight_decay``. Returns (actor, last epoch's mean MSE [rad²])."""
+    weights by ``config.weight_decay``. Returns (actor, last epoch's mean loss: MSE [rad²] or NLL [nats per
+    sample])."""
     import torch
 
     torch.set_num_threads(1)  # small minibatches: one thread is fastest, and fair to a shared machine
     torch.manual_seed(config.seed * 1000 + round_index)
     generator = torch.Generator().manual_seed(config.seed * 1000 + round_index)
-    actor = _new_actor(obs.shape[1], config.frames, actions.shape[1], config.hidden)
+    mixture = config.student == "mdn"
+    actor = _new_actor(obs.shape[1], config.frames, actions.shape[1],
+                       actor_config(config.hidden, config.student, config.components))
     inputs = _inputs(obs, history)
     targets = torch.as_tensor(actions, dtype=torch.float32)
     actor.obs_normalizer.update(torch.cat([inputs["policy"], inputs["history"]], dim=-1))
@@ -112,7 +124,10 @@ def train_student(obs: np.ndarray, history: np.ndarray, actions: np.ndarray, con
                 noise = torch.randn(len(index), len(spread), generator=generator) * spread
                 batch["policy"] = batch["policy"] + noise[:, :width]
                 batch["history"] = batch["history"] + noise[:, width:]
-            loss = torch.nn.functional.mse_loss(actor(batch), targets[index])
+            if mixture:
+                loss = actor.nll(batch, targets[index])
+            else:
+                loss = torch.nn.functional.mse_loss(actor(batch), targets[index])
             optimizer.zero_grad()
             loss.backward()
             optimizer.step()
@@ -132,9 +147,11 @@ def save_student(path: Path, actor, config, round_index: int, dataset: dict) -> 
     record = {"method": METHOD,
               "env": {"robot": config.robot, "backend": "+".join(config.simulators), "history": config.frames,
                       "action_scale": 1.0, "action_hold": 1, "base_controller": None},
-              "train_cfg": {"obs_groups": {"actor": GROUPS}, "actor": actor_config(config.hidden)},
+              "train_cfg": {"obs_groups": {"actor": GROUPS},
+                           "actor": actor_config(config.hidden, config.student, config.components)},
               "distill": {**config.as_dict(), "round": round_index, "dataset": dataset}}
-    description = (f"{METHOD}: an MLP on proprioception (history {config.frames}) distilled from {config.teacher} "
+    kind = f"a {config.components}-component mixture-density MLP" if config.student == "mdn" else "an MLP"
+    description = (f"{METHOD}: {kind} on proprioception (history {config.frames}) distilled from {config.teacher} "
                    f"by DAgger ({round_index + 1} rounds, round 0 behaviour cloning) on {dataset['episodes']} "
                    f"{config.robot} {config.terrain} level-{config.level} episodes ({dataset['samples']} samples, "
                    f"{dataset['cpu_s'] / 60:.0f} teacher CPU min) in {' and '.join(config.simulators)}")
