@@ -16,6 +16,14 @@ Run (three seeds side by side; ``--jobs 1`` trains them one after another)::
     python benchmarks/learning_curve.py --preset symmetry --out runs/lc-symmetry --seeds 0,1,2 --steps 3.07e6
     python benchmarks/learning_curve.py --out runs/lc-symmetry --report     # the table of existing runs only
 
+``--stage AT:ARGS`` makes the recipe a schedule: each seed trains to AT env steps, resumes once with the
+``frbench train`` arguments ARGS (a new reward or morphology stage, recorded in the run's config.json), and
+trains on to ``--steps``. The calmed ``symmetry-assist`` campaign (the shipped FR-Net's motion-penalty and
+action-smoothing stage, docs/training.md)::
+
+    python benchmarks/learning_curve.py --out runs/lc-symmetry-assist --seeds 0,1,2 --steps 15e6 \
+        --stage "7.5e6:--motion-penalties 0.3 --reward-weight action_smoothing=-0.2"
+
 Prints one row per seed and mark, then per mark the mean and the minimum over the seeds, then
 ``reached target: K/N seeds`` (flat success >= ``--target`` at the last mark).
 
@@ -47,43 +55,72 @@ import json
 import shlex
 import subprocess
 import sys
-import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 MARKS = (0.5e6, 1.0e6, 1.5e6, 2.0e6, 2.5e6, 3.0e6)
 
 
-def train_command(args, seed: int, folder: Path) -> list[str]:
-    """The ``frbench train`` command of one seed: a new run, or the run's resumption when its folder exists."""
+def trained_steps(folder: Path) -> int:
+    """The env steps of a run's last checkpoint (0 for none)."""
+    path = folder / "progress.json"
+    progress = json.loads(path.read_text()) if path.is_file() else []
+    return progress[-1]["env_steps"] if progress else 0
+
+
+def stage_recorded(folder: Path, stage_args: list[str]) -> bool:
+    """Whether the run's config records a stage started with ``stage_args`` (`frbench train --resume`)."""
+    config = json.loads((folder / "config.json").read_text())
+    return any(shlex.join(stage_args) in stage.get("command", "") for stage in config.get("stages", []))
+
+
+def next_train_command(args, seed: int, folder: Path) -> list[str] | None:
+    """The next ``frbench train`` command of one seed (None: it is done): a new run, or the run's resumption
+    when its folder exists. With ``--stage AT:ARGS`` the run first trains to AT env steps, then resumes once
+    with ARGS (a new stage, recorded in its config.json), then trains on to the budget."""
     frbench = [sys.executable, "-m", "frbench"]
-    if (folder / "config.json").is_file():
-        return [*frbench, "train", "--resume", str(folder), "--steps", str(args.steps)]
-    fields = [x for item in args.fields for x in ("--set", item)]
-    return [*frbench, "train", "--method", args.method, "--preset", args.preset, "--envs", str(args.envs),
-            "--steps", str(args.steps), "--set", f"seed={seed}", *fields, "--out", str(folder)]
+    stage_at, stage_args = args.stage if args.stage else (None, [])
+    staged = bool(stage_args) and (folder / "config.json").is_file() and stage_recorded(folder, stage_args)
+    budget = stage_at if stage_args and not staged else args.steps
+    steps = trained_steps(folder)
+    if not (folder / "config.json").is_file():
+        fields = [x for item in args.fields for x in ("--set", item)]
+        return [*frbench, "train", "--method", args.method, "--preset", args.preset, "--envs", str(args.envs),
+                "--steps", str(budget), "--set", f"seed={seed}", *fields, "--out", str(folder)]
+    if stage_args and not staged and steps >= stage_at:
+        return [*frbench, "train", "--resume", str(folder), "--steps", str(args.steps), *stage_args]
+    if steps < budget:
+        return [*frbench, "train", "--resume", str(folder), "--steps", str(budget)]
+    return None
+
+
+def train_seed(args, seed: int) -> None:
+    """Run one seed's ``frbench train`` commands one after another, logging beside its run (``OUT/seed<S>.log``)."""
+    folder = args.out / f"seed{seed}"
+    with open(args.out / f"seed{seed}.log", "a") as log:
+        while (command := next_train_command(args, seed, folder)) is not None:
+            log.write("$ " + shlex.join(command) + "\n")
+            log.flush()
+            finished = subprocess.run(command, stdout=log, stderr=subprocess.STDOUT)
+            if finished.returncode != 0:
+                print(f"seed {seed}: frbench train exited {finished.returncode} (log: {log.name})", file=sys.stderr)
+                return
 
 
 def train_all(args, seeds: list[int]) -> None:
-    """Train the seeds, ``args.jobs`` at a time; each writes its log beside its run (``OUT/seed<S>.log``)."""
+    """Train the seeds, ``args.jobs`` at a time (`train_seed`)."""
     args.out.mkdir(parents=True, exist_ok=True)
-    pending, running = list(seeds), []
-    while pending or running:
-        while pending and len(running) < args.jobs:
-            seed = pending.pop(0)
-            folder = args.out / f"seed{seed}"
-            command = train_command(args, seed, folder)
-            log = open(args.out / f"seed{seed}.log", "a")
-            log.write("$ " + " ".join(shlex.quote(c) for c in command) + "\n")
-            log.flush()
-            running.append((seed, subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT), log))
-        time.sleep(5)
-        for item in list(running):
-            seed, process, log = item
-            if process.poll() is not None:
-                log.close()
-                running.remove(item)
-                if process.returncode != 0:
-                    print(f"seed {seed}: frbench train exited {process.returncode} (log: {log.name})", file=sys.stderr)
+    with ThreadPoolExecutor(max_workers=args.jobs) as pool:
+        list(pool.map(lambda seed: train_seed(args, seed), seeds))
+
+
+def parse_stage(text: str) -> tuple[float, list[str]]:
+    """``AT:ARGS`` of ``--stage``: env steps and the ``frbench train --resume`` arguments of the new stage."""
+    at, _, rest = text.partition(":")
+    try:
+        return float(at), shlex.split(rest)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--stage {text!r}: expected AT:ARGS, e.g. '7.5e6:--motion-penalties 0.3'")
 
 
 def at_mark(progress: list[dict], mark: float) -> dict | None:
@@ -215,6 +252,8 @@ def main(argv=None) -> int:
     parser.add_argument("--steps", type=float, default=3.07e6)
     parser.add_argument("--envs", type=int, default=256)
     parser.add_argument("--jobs", type=int, default=3, help="seeds trained at once")
+    parser.add_argument("--stage", type=parse_stage, metavar="AT:ARGS",
+                        help="at AT env steps resume once with these frbench train arguments (a new stage)")
     parser.add_argument("--target", type=float, default=0.6)
     parser.add_argument("--report", action="store_true", help="print the table of the existing runs only")
     parser.add_argument("--marks", default=",".join(f"{m:g}" for m in MARKS),
