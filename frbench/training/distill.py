@@ -44,7 +44,8 @@ from frbench.robot_checks.lookup import get_robot
 from frbench.tasks.initial_states import draw_starts
 from frbench.terrains import make_terrain
 from frbench.training.distill_data import ObservationHistory, load_rounds, read_meta, shard_path, write_shard
-from frbench.training.distill_student import STUDENTS, build_actor, save_student, student_actions, train_student
+from frbench.training.distill_student import (STUDENTS, build_actor, mixture_fit, save_student, student_actions,
+                                              train_student)
 
 #: The teachers `frbench distill` knows.
 TEACHERS = ("mpc",)
@@ -343,9 +344,10 @@ def run_distillation(run: Path, config: DistillConfig, jobs: int = 1, log=print)
             trained[r] = {"samples": int(len(obs)), "loss": loss, "cpu_s": round(time.process_time() - cpu, 1),
                           "checkpoint": str(checkpoint), "settings": _training_settings(config)}
             fit = f"MSE {loss:.4f} rad²"
-            if config.student == "mdn":  # its loss is the NLL; the MSE of what it acts compares with the MLP's
-                trained[r]["mse"] = float(((student_actions(actor, obs, history) - actions) ** 2).mean())
-                fit = f"NLL {loss:.3f} nats, MSE of its actions {trained[r]['mse']:.4f} rad²"
+            if config.student == "mdn":  # its own objective; the MSE of what it acts compares with the MLP's
+                trained[r].update(mixture_fit(actor, obs, history, actions))
+                fit = (f"objective {loss:.3f}, NLL {trained[r]['nll']:.3f} nats, MSE of its actions "
+                       f"{trained[r]['mse']:.4f} rad²")
             atomic_write_text(trained_path, json.dumps(trained, indent=1) + "\n")
             log(f"round {r}: student trained on {len(obs)} samples of {len(metas)} episodes, {fit}")
         _write_progress(run, config, trained)

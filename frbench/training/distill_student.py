@@ -3,7 +3,7 @@
 The actor (``student`` "mse", the default) is `rsl_rl.models.MLPModel` (deterministic output, observation
 normalisation), the actor of frbench's ``ppo`` method, trained by MSE. With ``student`` "mdn" it is
 `frbench.networks.mixture.MixtureDensityModel` (``components`` Gaussians over the action vector, trained
-by negative log-likelihood; it acts with the mean of its most probable component). Either way the
+by its likelihood, `MixtureDensityModel.loss`; it acts with the mean of its most probable component). Either way the
 checkpoint it is saved in (method ``mpc-distill``, format ``frbench-policy-v1``) loads as a
 `frbench.policies.learned.LearnedPolicy`: joint targets q* = q̊ + a with action scale 1, every control step.
 """
@@ -94,8 +94,8 @@ def train_student(obs: np.ndarray, history: np.ndarray, actions: np.ndarray, con
     ``config.epochs`` passes in minibatches of ``config.minibatch``, seeded by (``config.seed``, round).
     The normaliser takes the whole dataset's mean and spread; each minibatch's inputs get Gaussian noise of
     ``config.input_noise`` × that spread (a regulariser against the student's own drift), and AdamW decays the
-    weights by ``config.weight_decay``. Returns (actor, last epoch's mean loss: MSE [rad²] or NLL [nats per
-    sample])."""
+    weights by ``config.weight_decay``. Returns (actor, last epoch's mean loss: MSE [rad²] or the mixture's
+    objective, `MixtureDensityModel.loss`)."""
     import torch
 
     torch.set_num_threads(1)  # small minibatches: one thread is fastest, and fair to a shared machine
@@ -125,7 +125,7 @@ def train_student(obs: np.ndarray, history: np.ndarray, actions: np.ndarray, con
                 batch["policy"] = batch["policy"] + noise[:, :width]
                 batch["history"] = batch["history"] + noise[:, width:]
             if mixture:
-                loss = actor.nll(batch, targets[index])
+                loss = actor.loss(batch, targets[index])
             else:
                 loss = torch.nn.functional.mse_loss(actor(batch), targets[index])
             optimizer.zero_grad()
@@ -133,6 +133,16 @@ def train_student(obs: np.ndarray, history: np.ndarray, actions: np.ndarray, con
             optimizer.step()
             loss_sum += float(loss.detach()) * len(index)
     return actor.eval(), loss_sum / len(obs)
+
+
+def mixture_fit(actor, obs: np.ndarray, history: np.ndarray, actions: np.ndarray) -> dict:
+    """A mixture student's fit to the actions (M, J): ``nll`` [nats per sample] and ``mse`` [rad²] of the
+    actions it takes (its most probable component's mean)."""
+    import torch
+
+    inputs, targets = _inputs(obs, history), torch.as_tensor(actions, dtype=torch.float32)
+    with torch.inference_mode():
+        return {"nll": float(actor.nll(inputs, targets)), "mse": float((actor(inputs) - targets).square().mean())}
 
 
 def save_student(path: Path, actor, config, round_index: int, dataset: dict) -> None:
