@@ -8,7 +8,9 @@ replanning steps and inside plans, for *upright* steps (this and the previous st
 gravity z < −``--upright`` and mean |q − q̊| < ``--pose`` rad: standing or close) and for all others, once
 over the episodes the teacher acted and once over all (DAgger labels states the student visited).
 With ``--student CHECKPOINT`` it also prints that student's mean squared error [rad²] against the labels,
-upright and other steps apart.
+upright and other steps apart; for a mixture-density student (``frbench distill --student mdn``) also the
+error of its component nearest to each label (*nearest component*: whether one of its K answers is the
+teacher's, where the one it acts with is not) and the mean weight of the component it acts with.
 
 Run: ``python benchmarks/distill_labels.py runs/distill-g1 runs/distill-g1-long --student
 runs/distill-g1-long/checkpoints/round5.pt``.
@@ -41,13 +43,22 @@ def changes(obs: np.ndarray, labels: np.ndarray, upright: float, pose: float, re
 
 
 def squared_errors(actor, data, upright: float, pose: float):
-    """Per step of one shard: the student's mean squared error over joints [rad²] (T,) and whether the step is
-    upright (T,)."""
-    from frbench.training.distill_student import student_actions
+    """Per step of one shard: the student's mean squared error over joints [rad²] (T,), whether the step is
+    upright (T,), and for a mixture student the error of its component nearest to the label (T,) and the weight of
+    its most probable component (T,) (else NaN)."""
+    import torch
+
+    from frbench.training.distill_student import _inputs, student_actions
 
     obs, labels = data["obs"], data["actions"]
     up = upright_steps(obs, labels.shape[1], upright, pose)
-    return ((student_actions(actor, obs, data["history"]) - labels) ** 2).mean(axis=1), up
+    nearest, weight = np.full(len(labels), np.nan), np.full(len(labels), np.nan)
+    if hasattr(actor, "mixture"):
+        with torch.inference_mode():
+            log_weights, means, _ = (x.numpy() for x in actor.mixture(_inputs(obs, data["history"])))
+        nearest = ((means - labels[:, None, :]) ** 2).mean(axis=2).min(axis=1)
+        weight = np.exp(log_weights.max(axis=1))
+    return ((student_actions(actor, obs, data["history"]) - labels) ** 2).mean(axis=1), up, nearest, weight
 
 
 def main() -> None:
@@ -83,9 +94,12 @@ def main() -> None:
             print(f"{run} ({who} acted, {len(rows)} episodes, {int(up.sum())} upright steps): "
                   + ", ".join(f"{k} {v.mean():.3f}" for k, v in cells.items()) + " rad", flush=True)
             if errors:
-                error, up = (np.concatenate([e[k] for e in errors]) for k in range(2))
-                print(f"  {args.student} MSE: upright {error[up].mean():.3f}, other {error[~up].mean():.3f} rad²",
-                      flush=True)
+                error, up, nearest, weight = (np.concatenate([e[k] for e in errors]) for k in range(4))
+                line = f"  {args.student} MSE: upright {error[up].mean():.3f}, other {error[~up].mean():.3f} rad²"
+                if not np.isnan(nearest).all():
+                    line += (f"; nearest component: upright {nearest[up].mean():.3f}, other {nearest[~up].mean():.3f}"
+                             f"; weight of the acting one: upright {weight[up].mean():.2f}, other {weight[~up].mean():.2f}")
+                print(line, flush=True)
 
 
 if __name__ == "__main__":

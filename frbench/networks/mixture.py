@@ -13,8 +13,8 @@ instead of by their average; :meth:`MixtureDensityModel.loss`, the training obje
 gradient of a squared error weighted by each component's responsibility for the target, in place of the
 likelihood's, which weighs every residual by 1/σ² (β-NLL with β = 1 for the means: Seitzer et al., "On the
 pitfalls of heteroscedastic uncertainty estimation with probabilistic neural networks", ICLR 2022):
-targets fitted to a narrow σ (on the G1 teacher's data: the 4 % of labels that are exactly the default pose)
-otherwise take over the shared layers, and the means of the broad components fit slowly. Its ``forward`` is deterministic: the mean of the most probable component
+otherwise the targets a narrow component fits dominate the shared layers' gradient, and the means of the
+broad components fit slowly (docs/planning.md, "A third attempt"). Its ``forward`` is deterministic: the mean of the most probable component
 (arg max π), so a loader that builds it from its ``class_name`` (``frbench.policies.learned.LearnedPolicy``)
 runs it like any other deterministic actor, with the same (N, J) output.
 """
