@@ -149,6 +149,24 @@ def test_a_resumed_run_can_start_a_reward_stage_with_the_papers_motion_penalties
         reward_weight_changes(None, ["smoothness=-1"])
 
 
+def test_a_resumed_run_can_start_a_stage_with_another_entropy_coefficient(tmp_path):
+    from frbench.training.run import TrainingRun
+
+    cfg = TrainEnvConfig(num_envs=4, episode_steps=5, settle_steps=2, num_morphologies=2, families=("flat",))
+    TrainingRun(tmp_path / "run", "ppo", cfg, total_steps=4 * 24, checkpoint_every=1,
+                train_overrides={"algorithm": {"entropy_coef": 0.01}}).train(progress_bar=False)
+    staged = TrainingRun(tmp_path / "run", total_steps=4 * 24 * 2, resume=True, checkpoint_every=1,
+                         command="frbench train --resume run --entropy-coef 0.005",
+                         algorithm_stage={"entropy_coef": 0.005})
+    assert staged.runner.alg.entropy_coef == 0.005 and staged.env_steps == 96
+    staged.train(progress_bar=False)
+    config = json.loads((tmp_path / "run" / "config.json").read_text())
+    assert config["train_cfg"]["algorithm"]["entropy_coef"] == 0.005
+    assert config["stages"] == [{"from_env_steps": 96, "weights": {}, "algorithm": {"entropy_coef": 0.005},
+                                 "command": "frbench train --resume run --entropy-coef 0.005"}]
+    assert TrainingRun(tmp_path / "run", resume=True).runner.alg.entropy_coef == 0.005
+
+
 def test_an_action_held_for_several_control_steps_is_one_decision_in_training_and_deployment(tmp_path):
     """``action_hold`` 3 over 7-step episodes: decisions advance 3, 3, 1 control steps, their rewards summed; the
     deployed policy asks its network once every 3 `act` calls and adds the same action in between."""

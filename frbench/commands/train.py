@@ -36,6 +36,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--morphology-range", action="append", default=[], metavar="FIELD=LOW,HIGH",
                    help="replace one row of the paper's morphology table, e.g. calf_width=0.016,0.040 [m] "
                         "(repeatable; with --resume: part of a new stage, the robots are redrawn)")
+    p.add_argument("--entropy-coef", type=float, default=None, metavar="COEF",
+                   help="PPO's entropy bonus coefficient (new runs: on top of the preset; with --resume: part of a "
+                        "new stage from the run's current step)")
     p.add_argument("--checkpoint-every", type=int, default=20, help="iterations between checkpoints")
     p.add_argument("--out", type=Path, default=None, help="run folder (default runs/<method>)")
     p.add_argument("--resume", type=Path, default=None, help="continue the run in this folder")
@@ -176,12 +179,15 @@ def run(args) -> int:
     if args.backend is not None and args.backend not in training_backend_names():
         raise unknown_name("backend", args.backend, training_backend_names())
     ranges = morphology_range_changes(args.morphology_range)
+    if args.entropy_coef is not None and not args.entropy_coef >= 0:
+        raise FrbenchError(f"--entropy-coef {args.entropy_coef}: expected a coefficient >= 0")
+    algorithm = {} if args.entropy_coef is None else {"entropy_coef": float(args.entropy_coef)}
     if args.resume:
         if args.fields or args.preset != "paper":
             raise FrbenchError("--resume continues a run with its own config; --preset and --set apply to new runs")
         run_ = TrainingRun(args.resume, total_steps=int(args.steps) if args.steps else None, resume=True,
                            checkpoint_every=args.checkpoint_every, command=command, reward_stage=weights,
-                           morphology_stage=ranges, backend_stage=args.backend)
+                           morphology_stage=ranges, backend_stage=args.backend, algorithm_stage=algorithm)
     else:
         if args.method not in METHODS and args.method != ADAPTATION_METHOD:
             raise unknown_name("training method", args.method, METHODS)
@@ -189,6 +195,8 @@ def run(args) -> int:
         if args.steps <= 0 or args.envs < 1:
             raise FrbenchError("--steps and --envs must be positive")
         env_cfg, overrides = new_run_config(args, command, weights, ranges)
+        if algorithm:
+            overrides = {**(overrides or {}), "algorithm": {**(overrides or {}).get("algorithm", {}), **algorithm}}
         out = args.out or Path("runs") / args.method
         run_ = TrainingRun(out, args.method, env_cfg, int(args.steps), args.checkpoint_every, command,
                            teacher=args.teacher, train_overrides=overrides)

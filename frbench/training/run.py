@@ -114,7 +114,8 @@ class TrainingRun:
     def __init__(self, out: Path, method: str | None = None, env_cfg=None, total_steps: int | None = None,
                  checkpoint_every: int = 20, command: str = "", resume: bool = False, teacher: Path | None = None,
                  reward_stage: dict[str, float] | None = None, morphology_stage: dict | None = None,
-                 train_overrides: dict | None = None, backend_stage: str | None = None):
+                 train_overrides: dict | None = None, backend_stage: str | None = None,
+                 algorithm_stage: dict[str, float] | None = None):
         """``method="rma-adaptation"`` is RMA's phase 2: ``teacher`` is a finished ``rma`` run folder whose
         policy is frozen while the adaptation module learns; its env config is reused (with a 50-frame
         long history), ``env_cfg`` is ignored.
@@ -125,7 +126,9 @@ class TrainingRun:
         trained which steps. ``morphology_stage`` (with ``resume``), field → (low, high), likewise replaces rows
         of the morphology table: the run's robots are redrawn from the new table. ``backend_stage`` (with
         ``resume``), a backend name, continues the run in that simulator (e.g. ``mujoco+pybullet``: a MuJoCo-trained
-        policy fine-tuned in both), recorded as a stage too. ``train_overrides`` (new runs)
+        policy fine-tuned in both), recorded as a stage too. ``algorithm_stage`` (with ``resume``), PPO setting →
+        value (``entropy_coef``), changes rsl-rl's algorithm config from the run's current step, recorded the
+        same way. ``train_overrides`` (new runs)
         are merged into the method's rsl-rl config (e.g. ``{"actor": {"distribution_cfg": {"init_std": 0.2}}}``)
         and saved with it."""
         torch.set_num_threads(1)
@@ -145,9 +148,10 @@ class TrainingRun:
             total_steps = total_steps or config["total_steps"]
             train_cfg = config["train_cfg"]
             new_backend = backend_stage if backend_stage and backend_stage != env_cfg.backend else None
-            if reward_stage or morphology_stage or new_backend:
+            if reward_stage or morphology_stage or new_backend or algorithm_stage:
                 env_cfg = self._new_stage(config, env_cfg, reward_stage or {}, morphology_stage or {}, command,
-                                          new_backend)
+                                          new_backend, algorithm_stage or {})
+                train_cfg = config["train_cfg"]
         else:
             if (self.out / CONFIG_FILE).exists():
                 raise FrbenchError(f"--out {self.out}: a run is already there; use --resume {self.out} or another name")
@@ -194,9 +198,10 @@ class TrainingRun:
 
     # ------------------------------------------------------------------ persistence
     def _new_stage(self, config: dict, env_cfg, weights: dict[str, float], morphology: dict, command: str,
-                   backend: str | None = None):
+                   backend: str | None = None, algorithm: dict[str, float] | None = None):
         """The env config with the reward ``weights``, ``morphology`` ranges and ``backend`` (None: unchanged)
-        changed; records the stage in ``config`` (``__init__`` writes config.json)."""
+        changed; ``algorithm`` settings set in ``config["train_cfg"]["algorithm"]``; records the stage in
+        ``config`` (``__init__`` writes config.json)."""
         check_weights(weights)
         morphology_ranges(morphology)  # validates names and values before anything is written
         state_path = self.out / STATE_FILE
@@ -212,6 +217,9 @@ class TrainingRun:
             stage["backend"] = backend
         if morphology:
             stage["morphology_ranges"] = {k: list(map(float, v)) for k, v in morphology.items()}
+        if algorithm:
+            config["train_cfg"]["algorithm"].update(algorithm)
+            stage["algorithm"] = dict(algorithm)
         config.setdefault("stages", []).append(stage)
         return env_cfg
 
