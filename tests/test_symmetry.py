@@ -126,3 +126,6 @@ def test_a_preset_s_algorithm_values_reach_the_rsl_rl_config_beside_the_mirror()
     assert cfg["algorithm"]["entropy_coef"] == 0.01
     assert cfg["algorithm"]["symmetry_cfg"]["use_data_augmentation"] is True
     assert make_train_cfg("frnet", PRESETS["symmetry"].train_overrides())["algorithm"]["entropy_coef"] == 0.005
+    steady = make_train_cfg("frnet", PRESETS["symmetry-assist-steady"].train_overrides())
+    assert steady["algorithm"]["entropy_coef"] == 0.005 and steady["algorithm"]["symmetry_cfg"]["use_data_augmentation"]
+    assert PRESETS["symmetry-assist-steady"].env["assist_force"] == 0.4

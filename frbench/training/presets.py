@@ -97,6 +97,11 @@ PRESETS: Mapping[str, Preset] = MappingProxyType({
         env=_DEMO_STARTS, symmetry=True),
     "symmetry-entropy": _SYMMETRY_ENTROPY,
     "symmetry-assist": _SYMMETRY_ASSIST,
+    "symmetry-assist-steady": replace(
+        _SYMMETRY_ASSIST,
+        description="symmetry-assist at the old entropy coefficient 0.005: the assist force without the entropy "
+                    "change, under which the mean action chatters on Go2 (docs/training.md)",
+        algorithm=MappingProxyType({"entropy_coef": 0.005})),
     "symmetry-assist-cover": replace(
         _SYMMETRY_ASSIST,
         description="symmetry-assist with the morphology table widened to hold the benchmark's quadrupeds "
