@@ -19,10 +19,10 @@ Run (three seeds side by side; ``--jobs 1`` trains them one after another)::
 ``--stage AT:ARGS`` makes the recipe a schedule: each seed trains to AT env steps, resumes once with the
 ``frbench train`` arguments ARGS (a new reward or morphology stage, recorded in the run's config.json), and
 trains on to ``--steps``. The calmed ``symmetry-assist`` campaign (the shipped FR-Net's motion-penalty and
-action-smoothing stage, docs/training.md)::
+action-smoothing stage with the old entropy coefficient, docs/training.md, "Past 3 M env steps")::
 
-    python benchmarks/learning_curve.py --out runs/lc-symmetry-assist --seeds 0,1,2 --steps 15e6 \
-        --stage "7.5e6:--motion-penalties 0.3 --reward-weight action_smoothing=-0.2"
+    python benchmarks/learning_curve.py --out runs/lc-symmetry-assist --seeds 1,2 --steps 10e6 \
+        --stage "7.5e6:--motion-penalties 0.3 --reward-weight action_smoothing=-0.2 --entropy-coef 0.005"
 
 Prints one row per seed and mark, then per mark the mean and the minimum over the seeds, then
 ``reached target: K/N seeds`` (flat success >= ``--target`` at the last mark).
