@@ -41,7 +41,7 @@ evaluation seeds 0-3 × E episodes per simulator (protocol 1.1; the results besi
 
     python benchmarks/learning_curve.py --out runs/lc-symmetry --report --evaluate 8
 
-``--evaluate-marks E`` scores, the same way, the policy snapshot (``snapshots/``, one every 0.98 M env steps)
+``--evaluate-marks E`` scores, the same way, the policy snapshot (``snapshots/``, one per million env steps)
 nearest each of ``--marks``: how the carry-over to Go2 grows with training
 (``OUT/seed<S>/eval-go2-flat-<env steps>.json``, reused on a second report)::
 
@@ -59,6 +59,8 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 MARKS = (0.5e6, 1.0e6, 1.5e6, 2.0e6, 2.5e6, 3.0e6)
+#: The evaluation seeds of the Go2 flat scores (``frbench evaluate --seeds``).
+EVALUATION_SEEDS = (0, 1, 2, 3)
 
 
 def trained_steps(folder: Path) -> int:
@@ -184,10 +186,10 @@ def evaluate_go2_flat(policy: Path, result: Path, episodes: int, reuse: bool) ->
     written to ``result`` (kept when ``reuse`` and it holds that many episodes); its episodes."""
     if reuse and result.is_file():
         kept = json.loads(result.read_text())["episodes"]
-        if len(kept) == 4 * episodes * 2:
+        if len(kept) == len(EVALUATION_SEEDS) * episodes * 2:  # two simulators
             return kept
     command = [sys.executable, "-m", "frbench", "evaluate", "--policy", str(policy), "--robots", "go2",
-               "--terrains", "flat", "--levels", "1", "--seeds", "0,1,2,3", "--episodes", str(episodes),
+               "--terrains", "flat", "--levels", "1", "--seeds", ",".join(map(str, EVALUATION_SEEDS)), "--episodes", str(episodes),
                "--jobs", "1", "--out", str(result)]
     subprocess.run(command, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     return json.loads(result.read_text())["episodes"]
@@ -216,14 +218,16 @@ def report_evaluation(out: Path, seeds: list[int], episodes: int) -> None:
         print(f"{seed:>4}   {evaluation_cells(run)}")
 
 
-def snapshot_at(folder: Path, mark: float) -> Path | None:
-    """The run's policy snapshot (``snapshots/policy_<env steps>.pt``) nearest to ``mark`` env steps, within half
-    a snapshot interval (0.5 M env steps); None when the run has none there."""
-    snapshots = {int(p.stem.split("_")[1]): p for p in (folder / "snapshots").glob("policy_*.pt")}
+def snapshot_at(folder: Path, mark: float) -> tuple[int, Path] | None:
+    """(env steps, path) of the run's policy snapshot (``snapshots/policy_<env steps>.pt``) nearest to ``mark``
+    env steps, within half the snapshot interval; None when the run has none there."""
+    from frbench.training.run import SNAPSHOT_DIR, SNAPSHOT_EVERY_STEPS
+
+    snapshots = {int(p.stem.split("_")[1]): p for p in (folder / SNAPSHOT_DIR).glob("policy_*.pt")}
     if not snapshots:
         return None
     steps = min(snapshots, key=lambda s: abs(s - mark))
-    return snapshots[steps] if abs(steps - mark) <= 0.5e6 else None
+    return (steps, snapshots[steps]) if abs(steps - mark) <= SNAPSHOT_EVERY_STEPS / 2 else None
 
 
 def report_evaluation_at_marks(out: Path, seeds: list[int], episodes: int, marks: tuple[float, ...]) -> None:
@@ -233,11 +237,11 @@ def report_evaluation_at_marks(out: Path, seeds: list[int], episodes: int, marks
     for seed in seeds:
         folder = out / f"seed{seed}"
         for mark in marks:
-            policy = snapshot_at(folder, mark)
-            if policy is None:
+            snapshot = snapshot_at(folder, mark)
+            if snapshot is None:
                 print(f"{seed:>4}  {mark / 1e6:6.2f} M  no snapshot")
                 continue
-            steps = int(policy.stem.split("_")[1])
+            steps, policy = snapshot
             run = evaluate_go2_flat(policy, folder / f"eval-go2-flat-{steps}.json", episodes, reuse=True)
             print(f"{seed:>4}  {steps / 1e6:6.2f} M  {evaluation_cells(run)}")
 
