@@ -46,6 +46,13 @@ nearest each of ``--marks``: how the carry-over to Go2 grows with training
 (``OUT/seed<S>/eval-go2-flat-<env steps>.json``, reused on a second report)::
 
     python benchmarks/learning_curve.py --out runs/lc-symmetry-assist --report --marks 3e6,6e6,9e6 --evaluate-marks 8
+
+``--evaluate-robots go2,go1,aliengo`` scores other benchmark robots the same way, each on flat level 1
+(``eval-<robot>-flat[-<env steps>].json``): a recipe can hold Go2 and lose the others (docs/training.md,
+"`symmetry-assist-steady` to 15 M env steps")::
+
+    python benchmarks/learning_curve.py --out runs/lc-symmetry-assist-steady --report --marks 6e6,15e6 \
+        --evaluate-marks 8 --evaluate-robots go2,go1
 """
 
 from __future__ import annotations
@@ -181,14 +188,14 @@ def report_deterministic(out: Path, seeds: list[int], target: float, rounds: int
     return reached
 
 
-def evaluate_go2_flat(policy: Path, result: Path, episodes: int, reuse: bool) -> list[dict]:
-    """``frbench evaluate`` of ``policy`` on Go2, flat level 1, evaluation seeds 0-3 × ``episodes`` per simulator,
-    written to ``result`` (kept when ``reuse`` and it holds that many episodes); its episodes."""
+def evaluate_flat(policy: Path, robot: str, result: Path, episodes: int, reuse: bool) -> list[dict]:
+    """``frbench evaluate`` of ``policy`` on ``robot``, flat level 1, evaluation seeds 0-3 × ``episodes`` per
+    simulator, written to ``result`` (kept when ``reuse`` and it holds that many episodes); its episodes."""
     if reuse and result.is_file():
         kept = json.loads(result.read_text())["episodes"]
         if len(kept) == len(EVALUATION_SEEDS) * episodes * 2:  # two simulators
             return kept
-    command = [sys.executable, "-m", "frbench", "evaluate", "--policy", str(policy), "--robots", "go2",
+    command = [sys.executable, "-m", "frbench", "evaluate", "--policy", str(policy), "--robots", robot,
                "--terrains", "flat", "--levels", "1", "--seeds", ",".join(map(str, EVALUATION_SEEDS)), "--episodes", str(episodes),
                "--jobs", "1", "--out", str(result)]
     subprocess.run(command, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -208,14 +215,15 @@ def evaluation_cells(episodes_run: list[dict]) -> str:
     return f"{', '.join(cells)}; both {wins / len(episodes_run):.3f} [{low:.3f}, {high:.3f}]"
 
 
-def report_evaluation(out: Path, seeds: list[int], episodes: int) -> None:
-    """Print each seed's final policy's successes on Go2, flat level 1 (`evaluate_go2_flat`), per simulator and
-    with a 95 % Wilson interval on both together."""
-    print(f"frbench evaluate, go2, flat level 1, seeds 0-3 x {episodes} episodes (successes per simulator)")
-    for seed in seeds:
-        folder = out / f"seed{seed}"
-        run = evaluate_go2_flat(folder / "policy.pt", folder / "eval-go2-flat.json", episodes, reuse=False)
-        print(f"{seed:>4}   {evaluation_cells(run)}")
+def report_evaluation(out: Path, seeds: list[int], episodes: int, robots: list[str]) -> None:
+    """Print each seed's final policy's successes on each robot, flat level 1 (`evaluate_flat`; results in
+    ``OUT/seed<S>/eval-<robot>-flat.json``), per simulator and with a 95 % Wilson interval on both together."""
+    for robot in robots:
+        print(f"frbench evaluate, {robot}, flat level 1, seeds 0-3 x {episodes} episodes (successes per simulator)")
+        for seed in seeds:
+            folder = out / f"seed{seed}"
+            run = evaluate_flat(folder / "policy.pt", robot, folder / f"eval-{robot}-flat.json", episodes, reuse=False)
+            print(f"{seed:>4}   {evaluation_cells(run)}")
 
 
 def snapshot_at(folder: Path, mark: float) -> tuple[int, Path] | None:
@@ -230,20 +238,22 @@ def snapshot_at(folder: Path, mark: float) -> tuple[int, Path] | None:
     return (steps, snapshots[steps]) if abs(steps - mark) <= SNAPSHOT_EVERY_STEPS / 2 else None
 
 
-def report_evaluation_at_marks(out: Path, seeds: list[int], episodes: int, marks: tuple[float, ...]) -> None:
-    """Print, per seed and mark, the Go2 flat level-1 successes of the policy snapshot nearest the mark
-    (`evaluate_go2_flat`; results in ``OUT/seed<S>/eval-go2-flat-<env steps>.json``, reused when present)."""
-    print(f"frbench evaluate of the snapshots, go2, flat level 1, seeds 0-3 x {episodes} episodes")
-    for seed in seeds:
-        folder = out / f"seed{seed}"
-        for mark in marks:
-            snapshot = snapshot_at(folder, mark)
-            if snapshot is None:
-                print(f"{seed:>4}  {mark / 1e6:6.2f} M  no snapshot")
-                continue
-            steps, policy = snapshot
-            run = evaluate_go2_flat(policy, folder / f"eval-go2-flat-{steps}.json", episodes, reuse=True)
-            print(f"{seed:>4}  {steps / 1e6:6.2f} M  {evaluation_cells(run)}")
+def report_evaluation_at_marks(out: Path, seeds: list[int], episodes: int, marks: tuple[float, ...],
+                               robots: list[str]) -> None:
+    """Print, per robot, seed and mark, the flat level-1 successes of the policy snapshot nearest the mark
+    (`evaluate_flat`; results in ``OUT/seed<S>/eval-<robot>-flat-<env steps>.json``, reused when present)."""
+    for robot in robots:
+        print(f"frbench evaluate of the snapshots, {robot}, flat level 1, seeds 0-3 x {episodes} episodes")
+        for seed in seeds:
+            folder = out / f"seed{seed}"
+            for mark in marks:
+                snapshot = snapshot_at(folder, mark)
+                if snapshot is None:
+                    print(f"{seed:>4}  {mark / 1e6:6.2f} M  no snapshot")
+                    continue
+                steps, policy = snapshot
+                run = evaluate_flat(policy, robot, folder / f"eval-{robot}-flat-{steps}.json", episodes, reuse=True)
+                print(f"{seed:>4}  {steps / 1e6:6.2f} M  {evaluation_cells(run)}")
 
 
 def main(argv=None) -> int:
@@ -268,6 +278,8 @@ def main(argv=None) -> int:
                         help="also score each seed's final policy on Go2 flat level 1 (EPISODES per cell)")
     parser.add_argument("--evaluate-marks", type=int, default=0, metavar="EPISODES",
                         help="also score each seed's policy snapshot nearest each mark on Go2 flat level 1")
+    parser.add_argument("--evaluate-robots", default="go2", metavar="ROBOTS",
+                        help="robots (comma-separated) that --evaluate and --evaluate-marks score, flat level 1 each")
     args = parser.parse_args(argv)
     seeds = [int(s) for s in args.seeds.split(",")]
     if not args.report:
@@ -276,10 +288,11 @@ def main(argv=None) -> int:
     report(args.out, seeds, args.target, marks)
     if args.deterministic:
         report_deterministic(args.out, seeds, args.target, args.deterministic)
+    robots = args.evaluate_robots.split(",")
     if args.evaluate:
-        report_evaluation(args.out, seeds, args.evaluate)
+        report_evaluation(args.out, seeds, args.evaluate, robots)
     if args.evaluate_marks:
-        report_evaluation_at_marks(args.out, seeds, args.evaluate_marks, marks)
+        report_evaluation_at_marks(args.out, seeds, args.evaluate_marks, marks, robots)
     return 0
 
 
