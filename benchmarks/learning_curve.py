@@ -275,11 +275,11 @@ def main(argv=None) -> int:
     parser.add_argument("--deterministic", type=int, default=0, metavar="ROUNDS",
                         help="also run each seed's final policy without exploration noise for ROUNDS rounds")
     parser.add_argument("--evaluate", type=int, default=0, metavar="EPISODES",
-                        help="also score each seed's final policy on Go2 flat level 1 (EPISODES per cell)")
+                        help="also score each seed's final policy on flat level 1 (EPISODES per cell and robot)")
     parser.add_argument("--evaluate-marks", type=int, default=0, metavar="EPISODES",
-                        help="also score each seed's policy snapshot nearest each mark on Go2 flat level 1")
+                        help="also score each seed's policy snapshot nearest each mark on flat level 1")
     parser.add_argument("--evaluate-robots", default="go2", metavar="ROBOTS",
-                        help="robots (comma-separated) that --evaluate and --evaluate-marks score, flat level 1 each")
+                        help="robots (comma-separated) that --evaluate and --evaluate-marks score (default go2)")
     args = parser.parse_args(argv)
     seeds = [int(s) for s in args.seeds.split(",")]
     if not args.report:
