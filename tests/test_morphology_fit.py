@@ -93,3 +93,22 @@ def test_the_covering_table_holds_the_benchmark_quadrupeds_hip_offsets_and_share
     robots = sample_morphologies(40, rng, ranges=dict(COVERING_MORPHOLOGY_RANGES))
     exclusions = {build_model(morphology_spec(m, f"m{i}"), terrain).nexclude for i, m in enumerate(robots)}
     assert exclusions == {24}
+
+
+def test_the_light_table_s_robots_weigh_what_the_benchmark_s_light_quadrupeds_weigh():
+    """`symmetry-assist-steady-light` draws robots of 8-24 kg, a range that holds Go1, Lite3-like, Go2 and Aliengo
+    (12-21 kg); the paper's table draws 19-45 kg (median 32 kg, none of 40 below 15 kg) before the standing check."""
+    from frbench.robots import ground_truth
+    from frbench.robots.morphology import total_mass
+    from frbench.training.population import sample_morphologies
+    from frbench.training.presets import LIGHT_MORPHOLOGY_RANGES, PRESETS
+
+    assert dict(PRESETS["symmetry-assist-steady-light"].env["morphology_ranges"]) == dict(LIGHT_MORPHOLOGY_RANGES)
+    assert PRESETS["symmetry-assist-steady-light"].algorithm["entropy_coef"] == 0.005
+    light = [total_mass(m) for m in sample_morphologies(200, np.random.default_rng(0), ranges=dict(LIGHT_MORPHOLOGY_RANGES))]
+    paper = [total_mass(m) for m in sample_morphologies(40, np.random.default_rng(0))]
+    assert 8.0 <= min(light) and max(light) <= 24.0
+    assert max(paper) > 35.0 and min(paper) > 15.0
+    for robot in ("go1", "lite3_like", "go2", "aliengo"):
+        mass = ground_truth.total_mass(get_robot(robot))
+        assert 11.0 <= mass <= 22.0 and min(light) <= mass <= max(light), (robot, mass)
