@@ -89,7 +89,7 @@ COVERING_MORPHOLOGY_RANGES = MappingProxyType({
 #: The mass rows of the paper's morphology table narrowed to the benchmark's quadrupeds ([kg]). With the paper's
 #: rows the robots that can stand at the lowest training gains weigh 12-32 kg (median 22 kg; 90 of 122 draws
 #: rejected for seed 0), all with Go2's effort limits, while Go1, Lite3-like, Go2 and Aliengo weigh 12-21 kg.
-#: With these rows they weigh 11-22 kg and nearly every draw stands.
+#: With these rows the draws weigh 10-23 kg (200 draws).
 LIGHT_MORPHOLOGY_RANGES = MappingProxyType({"trunk_mass": (4.0, 14.0), "thigh_mass": (0.6, 1.6), "calf_mass": (0.1, 0.3)})
 #: ``symmetry-assist-steady``, which ``symmetry-assist-steady-light`` extends.
 _SYMMETRY_ASSIST_STEADY = replace(
