@@ -127,7 +127,9 @@ def test_an_interrupted_ray_run_writes_no_results_and_cancels_its_cells(ray_inst
             ray.get(ref, timeout=60)
         except ray.exceptions.TaskCancelledError:
             cancelled += 1
-    assert cancelled >= 2  # at most one of the three (running on the other CPU) may have finished in between
+    # Both CPUs may have picked up a cell before the cancel arrives (the first cell's CPU takes the next queued
+    # one), so up to two of the three can finish; the third never started and must be cancelled.
+    assert cancelled >= 1
 
 
 def test_executor_names_are_checked(tmp_path, capsys):
