@@ -12,6 +12,10 @@ Proprioception (the paper's o_t, 42 values for a quadruped), each (N, k):
 
 Optional sensor noise (off by default) is uniform with the scales of
 `NOISE_SCALES`, drawn from a generator passed in.
+
+The math is written once for numpy and torch (`frbench.tasks.arrays`): evaluation passes numpy arrays (the
+numbers are bit for bit those of the numpy-only code before), the device training path
+(`frbench.training.device_env`) torch tensors that stay on their device.
 """
 
 from __future__ import annotations
@@ -19,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from frbench.backends.base import RobotState
+from frbench.tasks.arrays import like, namespace
 
 PROPRIOCEPTION_KEYS = ("base_angvel", "projected_gravity", "joint_pos", "joint_vel", "previous_action")
 #: Half-widths of uniform sensor noise, per key (legged_gym's values).
@@ -26,44 +31,46 @@ NOISE_SCALES = {"base_angvel": 0.2, "projected_gravity": 0.05, "joint_pos": 0.01
 
 
 #: Column orders of a cross product: (a × b)_i = a[NEXT_i] b[PREV_i] − a[PREV_i] b[NEXT_i].
-_NEXT, _PREV = np.array([1, 2, 0]), np.array([2, 0, 1])
+_NEXT, _PREV = (1, 2, 0), (2, 0, 1)
 
 
-def cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise cross products of (N, 3) arrays: the products and differences ``np.cross`` computes, in one
-    pass over the columns (without its axis handling)."""
-    return a[:, _NEXT] * b[:, _PREV] - a[:, _PREV] * b[:, _NEXT]
+def cross_rows(a, b):
+    """Row-wise cross products of (…, 3) arrays (numpy or torch, `frbench.tasks.arrays`): the products and
+    differences ``np.cross`` computes, one column at a time (without its axis handling)."""
+    xp = namespace(a, b)
+    return xp.stack([a[..., i] * b[..., j] - a[..., j] * b[..., i] for i, j in zip(_NEXT, _PREV)], axis=-1)
 
 
-def rotate_to_body(quat: np.ndarray, vectors: np.ndarray) -> np.ndarray:
-    """World vectors (N, 3) (or one (1, 3), broadcast) expressed in the body frames of quaternions (N, 4) wxyz."""
-    w, xyz = quat[:, :1], quat[:, 1:]
+def rotate_to_body(quat, vectors):
+    """World vectors (N, 3) (or one (1, 3), broadcast) expressed in the body frames of quaternions (N, 4) wxyz;
+    numpy arrays or torch tensors (on their device)."""
+    w, xyz = quat[..., :1], quat[..., 1:]
     # v_body = R^T v = v - 2 w (u × v) + 2 u × (u × v), with u = xyz (rotation by the conjugate)
     t = 2.0 * cross_rows(xyz, vectors)
     return vectors - w * t + cross_rows(xyz, t)
 
 
-#: The world's unit gravity direction (1, 3), broadcast over N rows.
-_DOWN = np.array([[0.0, 0.0, -1.0]])
-
-
-def projected_gravity(quat: np.ndarray) -> np.ndarray:
-    """Unit gravity direction in the body frame, (N, 3)."""
-    return rotate_to_body(quat, _DOWN)
+def projected_gravity(quat):
+    """Unit gravity direction in the body frame, (N, 3), of quaternions (N, 4) wxyz (numpy or torch)."""
+    xp = namespace(quat)
+    down = xp.zeros_like(quat[..., 1:])  # (0, 0, −1) per row, made where ``quat`` lives
+    down[..., 2] = -1.0
+    return rotate_to_body(quat, down)
 
 
 def proprioception(
-    state: RobotState, previous_action: np.ndarray, noise_rng: np.random.Generator | None = None,
-    gravity: np.ndarray | None = None,
-) -> dict[str, np.ndarray]:
+    state: RobotState, previous_action, noise_rng: np.random.Generator | None = None, gravity=None,
+) -> dict:
     """The policy's observation dict (see the module docstring); ``gravity`` (N, 3): `projected_gravity` of
-    ``state.base_quat`` when the caller has it already (it is copied)."""
+    ``state.base_quat`` when the caller has it already (it is copied). ``state``'s arrays may be numpy arrays
+    or torch tensors (the device training path); the noise, drawn from a numpy generator, only for numpy."""
+    xp = namespace(state.base_angvel)
     obs = {
-        "base_angvel": state.base_angvel.copy(),
-        "projected_gravity": projected_gravity(state.base_quat) if gravity is None else gravity.copy(),
-        "joint_pos": state.q.copy(),
-        "joint_vel": state.qd.copy(),
-        "previous_action": np.array(previous_action, dtype=float),
+        "base_angvel": xp.asarray(state.base_angvel, copy=True),
+        "projected_gravity": projected_gravity(state.base_quat) if gravity is None else xp.asarray(gravity, copy=True),
+        "joint_pos": xp.asarray(state.q, copy=True),
+        "joint_vel": xp.asarray(state.qd, copy=True),
+        "previous_action": xp.asarray(like(previous_action, state.q), copy=True),
     }
     if noise_rng is not None:
         for key, scale in NOISE_SCALES.items():
@@ -71,9 +78,12 @@ def proprioception(
     return obs
 
 
-def flatten(obs: dict[str, np.ndarray], default_pose: np.ndarray) -> np.ndarray:
-    """The paper's o_t (N, 6 + 3·n_joints): [ω, g, q − q̊, q̇, a_{t−1} − q̊] (42 for a quadruped)."""
-    return np.concatenate(
+def flatten(obs: dict, default_pose):
+    """The paper's o_t (N, 6 + 3·n_joints): [ω, g, q − q̊, q̇, a_{t−1} − q̊] (42 for a quadruped); numpy or
+    torch, ``default_pose`` (n_joints,) in the same namespace or a numpy array / sequence."""
+    xp = namespace(obs["joint_pos"])
+    default_pose = like(default_pose, obs["joint_pos"])
+    return xp.concat(
         [
             obs["base_angvel"],
             obs["projected_gravity"],

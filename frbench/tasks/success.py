@@ -20,7 +20,10 @@ Protocol 1.0 read the height from the terrain beneath the base only (a robot on
 a pit floor passed) and used HoST's pelvis-height rule for humanoids (a hand or
 head stand passed); both gaps are closed here.
 
-`EpisodeMetrics` accumulates, per environment and control step: energy
+The success test (`SuccessTracker`) runs on numpy arrays or torch tensors on any device (one implementation,
+`frbench.tasks.arrays`): evaluation feeds numpy signals, the device training path torch ones.
+
+`EpisodeMetrics` (numpy; evaluation only) accumulates, per environment and control step: energy
 ∫|τ·q̇|dt [J], smoothness (mean |Δ²q| [rad]), peak non-foot contact force [N],
 roll (∫ω_x dt, rolled over when its magnitude exceeds π at any time), final and
 maximum displacement [m], divergence.
@@ -35,6 +38,7 @@ import numpy as np
 from frbench.robots.kinematics import _axis_rotation
 from frbench.robots.sim_urdf import sim_robot_file
 from frbench.robots.urdf_tree import parse_urdf
+from frbench.tasks.arrays import cummax, device_of, float_dtype, namespace
 from frbench.tasks.initial_states import quat_to_matrix
 from frbench.tasks.protocol import CONTROL_DT
 from frbench.terrains import height_at, support_height
@@ -58,7 +62,8 @@ HOLD_STEPS = int(round(HOLD_SECONDS / CONTROL_DT))
 
 @dataclass
 class StepSignals:
-    """What the success test and the metrics read at one control step, each with N rows.
+    """What the success test and the metrics read at one control step, each with N rows (numpy arrays, or torch
+    tensors for the success test on a device).
 
     Attributes:
         gravity_z: projected gravity z of the base (N,) (−1 upright).
@@ -141,23 +146,28 @@ def torso_frame(spec) -> TorsoFrame | None:
 
 
 class SuccessTracker:
-    """Online success test for N episodes (see the module docstring)."""
+    """Online success test for N episodes (see the module docstring), on numpy arrays (evaluation) or torch
+    tensors on any device (the device training path): the signals fed decide, ``like`` (an array) gives the
+    namespace, device and float dtype of the tracker's own state (default numpy, float64)."""
 
-    def __init__(self, num_envs: int, kind: str, nominal_height: "float | np.ndarray"):
+    def __init__(self, num_envs: int, kind: str, nominal_height, like=None):
         """``nominal_height`` [m]: one value, or one per environment (N,) when robots differ."""
+        xp = namespace(like)
+        device = device_of(like) if like is not None else None
         self.kind = kind
         self.nominal_height = nominal_height
-        self.success = np.zeros(num_envs, dtype=bool)
-        self.time_to_recover = np.full(num_envs, np.nan)
-        self._streak = np.zeros(num_envs, dtype=int)
+        self.success = xp.zeros(num_envs, dtype=xp.bool, device=device)
+        self.time_to_recover = xp.full(num_envs, float("nan"), dtype=float_dtype(xp, like), device=device)
+        self._streak = xp.zeros(num_envs, dtype=xp.int64, device=device)
         self._step = 0
+        nominal = _array(nominal_height)
         if kind == "humanoid":
-            self.min_height = HUMANOID_UP_HEIGHT / HUMANOID_REFERENCE_HEIGHT * np.asarray(nominal_height)
+            self.min_height = HUMANOID_UP_HEIGHT / HUMANOID_REFERENCE_HEIGHT * nominal
             self.max_tilt_deg = HUMANOID_MAX_TILT_DEG
         else:
-            self.min_height = MIN_HEIGHT_FRACTION * np.asarray(nominal_height)
+            self.min_height = MIN_HEIGHT_FRACTION * nominal
             self.max_tilt_deg = MAX_TILT_DEG
-        self._cos_bound = np.cos(np.radians(self.max_tilt_deg))
+        self._cos_bound = float(np.cos(np.radians(self.max_tilt_deg)))
 
     @property
     def up_height(self) -> "float | np.ndarray":
@@ -167,54 +177,62 @@ class SuccessTracker:
     @property
     def floor_height(self) -> "float | np.ndarray":
         """Humanoid: protocol 1.0's floor, 0.5 m scaled by nominal height / 0.78 m (the key-frame search's objective)."""
-        return 0.5 / HUMANOID_REFERENCE_HEIGHT * np.asarray(self.nominal_height)
+        return 0.5 / HUMANOID_REFERENCE_HEIGHT * _array(self.nominal_height)
 
-    def up_pose(self, s: StepSignals) -> np.ndarray:
+    def up_pose(self, s: StepSignals):
         """(N,) the tilt, height and surface conditions (body contact not considered): the *upright bound*."""
         cos_bound = self._cos_bound
         ok = (s.gravity_z <= -cos_bound) & (s.height >= self.min_height)
         if s.torso_gravity_z is not None:
-            ok &= s.torso_gravity_z <= -cos_bound
+            ok = ok & (s.torso_gravity_z <= -cos_bound)
         if s.surface_drop is not None:
-            ok &= s.surface_drop <= STEP_TOLERANCE_M
+            ok = ok & (s.surface_drop <= STEP_TOLERANCE_M)
         return ok
 
-    def upright(self, s: StepSignals) -> np.ndarray:
+    def upright(self, s: StepSignals):
         """(N,) the stability condition at this step."""
         return self.up_pose(s) & ~s.body_contact
 
-    def update(self, s: StepSignals, alive: np.ndarray | None = None) -> None:
+    def update(self, s: StepSignals, alive=None) -> None:
         """Feed one control step (``alive`` False for diverged episodes, which cannot succeed)."""
         self.update_steps(_leading_step(s), None if alive is None else alive[None])
 
-    def update_steps(self, s: StepSignals, alive: np.ndarray | None = None) -> None:
+    def update_steps(self, s: StepSignals, alive=None) -> None:
         """Feed k control steps at once: ``s``'s arrays and ``alive`` are (k, N), step after step. The same as k
         calls of `update` (the streaks, the first step of each hold and the divergence masks are integer and
         boolean bookkeeping, here done with cumulative maxima over the steps instead of a loop)."""
         up = self.upright(s) if alive is None else self.upright(s) & alive
-        k = len(up)
-        steps = np.arange(1, k + 1)[:, None]  # 1..k
-        last_down = np.maximum.accumulate(np.where(up, 0, steps), axis=0)  # the last step not upright (0: none)
-        streak = steps - last_down + np.where(last_down == 0, self._streak, 0)
+        xp = namespace(up)
+        k = up.shape[0]
+        steps = xp.arange(1, k + 1, dtype=xp.int64, device=device_of(up))[:, None]  # 1..k
+        last_down = cummax(xp.where(up, 0, steps), axis=0)  # the last step not upright (0: none)
+        streak = steps - last_down + xp.where(last_down == 0, self._streak, 0)
         holds = (streak >= HOLD_STEPS) & (s.displacement < MAX_DISPLACEMENT)
         # success_t = alive_t & (success_{t-1} | holds_t): true when a hold came after the last dead step
-        last_hold = np.maximum.accumulate(np.where(holds, steps, 0), axis=0)
-        last_dead = np.zeros_like(last_hold) if alive is None else np.maximum.accumulate(np.where(alive, 0, steps), axis=0)
+        last_hold = cummax(xp.where(holds, steps, 0), axis=0)
+        last_dead = xp.zeros_like(last_hold) if alive is None else cummax(xp.where(alive, 0, steps), axis=0)
         success = (last_hold > last_dead) | (self.success & (last_dead == 0))
-        before = np.concatenate([self.success[None], success[:-1]])
+        before = xp.concat([self.success[None], success[:-1]])
         done = holds & ~before
-        if done.any():
-            last_done = k - 1 - np.argmax(done[::-1], axis=0)  # each environment's last step with a new hold
-            rows = np.flatnonzero(done.any(axis=0))
-            self.time_to_recover[rows] = (self._step + 1 + last_done[rows] - HOLD_STEPS + 1) * CONTROL_DT
+        # each environment's last step with a new hold (rows without one keep their time)
+        last_done = k - 1 - xp.argmax(xp.astype(xp.flip(done, axis=0), xp.int8), axis=0)
+        recovered = xp.astype(self._step + 1 + last_done - HOLD_STEPS + 1, self.time_to_recover.dtype) * CONTROL_DT
+        self.time_to_recover = xp.where(xp.any(done, axis=0), recovered, self.time_to_recover)
         self._streak = streak[-1]
-        self.success = success[-1].copy()
+        self.success = xp.asarray(success[-1], copy=True)
         self._step += k
+
+
+def _array(value):
+    """``value`` itself when it is an array of any namespace, else ``np.asarray(value)``."""
+    from array_api_compat import is_array_api_obj
+
+    return value if is_array_api_obj(value) else np.asarray(value)
 
 
 def _leading_step(s: StepSignals) -> StepSignals:
     """``s`` with a leading axis of one step: (N,) arrays become (1, N)."""
-    return StepSignals(*(None if getattr(s, f.name) is None else np.asarray(getattr(s, f.name))[None]
+    return StepSignals(*(None if getattr(s, f.name) is None else _array(getattr(s, f.name))[None]
                          for f in fields(StepSignals)))
 
 

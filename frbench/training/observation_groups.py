@@ -17,8 +17,34 @@ from __future__ import annotations
 
 import numpy as np
 
+from frbench.tasks.arrays import float_dtype, namespace
 from frbench.tasks.observations import rotate_to_body
 from frbench.training.population import yaw_of
+
+#: Largest foot force [N] the critic sees, and its scale [N].
+FOOT_FORCE_CAP_N, FOOT_FORCE_SCALE_N = 500.0, 100.0
+
+
+def privileged_groups(o_t, scan, masses, kp, kd, com_xy, group_contact, foot_force, friction, motor_strength,
+                      payload, base_quat, base_linvel) -> dict:
+    """The groups of the module docstring from their parts, numpy arrays or torch tensors on one device (the
+    CPU trainer and the device trainer assemble them here, in this order): o_t (N, 6 + 3J), the height scan
+    (N, 187) [m], group masses (N, G) [kg], Kp and Kd (N, J), CoM xy in the base yaw frame (N, 2) [m], contact
+    flags (N, C) bool, foot force norms (N, F) [N], friction, motor strength (N, J), payload (N,) [kg], base
+    quaternion (N, 4) wxyz and linear velocity (N, 3) [m/s], world frame."""
+    xp = namespace(o_t)
+    contact = xp.astype(group_contact, float_dtype(xp, o_t))
+    privileged = xp.concat([
+        o_t, xp.clip(scan, -1.0, 1.0), masses, kp, kd, com_xy,
+        contact, xp.minimum(foot_force, FOOT_FORCE_CAP_N) / FOOT_FORCE_SCALE_N, friction[:, None],
+    ], axis=1)
+    velocity = rotate_to_body(base_quat, base_linvel)
+    extrinsics = xp.concat([
+        masses, xp.mean(kp, axis=1, keepdims=True) / 50, xp.mean(kd, axis=1, keepdims=True),
+        xp.mean(motor_strength, axis=1, keepdims=True), friction[:, None], payload[:, None], com_xy,
+    ], axis=1)
+    return {"privileged": privileged, "mass": masses, "contact": contact, "velocity": velocity,
+            "extrinsics": extrinsics}
 
 
 class PrivilegedGroups:
@@ -34,17 +60,6 @@ class PrivilegedGroups:
         (see the module docstring)."""
         s, c, p = env.state, env.contacts, env.params
         scan = self.raster.scan(self.starts.tile_row, s.base_pos, yaw_of(s.base_quat))
-        masses = self.robots.env_masses
         com_xy = self.robots.com_xy(s, env.whole_body_com())
-        contact = c.group_contact.astype(float)
-        privileged = np.concatenate([
-            o_t, np.clip(scan, -1.0, 1.0), masses, p.kp, p.kd, com_xy,
-            contact, np.minimum(c.foot_force, 500.0) / 100.0, p.friction[:, None],
-        ], axis=1)
-        velocity = rotate_to_body(s.base_quat, s.base_linvel)
-        extrinsics = np.concatenate([
-            masses, p.kp.mean(axis=1, keepdims=True) / 50, p.kd.mean(axis=1, keepdims=True),
-            p.motor_strength.mean(axis=1, keepdims=True), p.friction[:, None], p.payload[:, None], com_xy,
-        ], axis=1)
-        return {"privileged": privileged, "mass": masses, "contact": contact, "velocity": velocity,
-                "extrinsics": extrinsics}
+        return privileged_groups(o_t, scan, self.robots.env_masses, p.kp, p.kd, com_xy, c.group_contact,
+                                 c.foot_force, p.friction, p.motor_strength, p.payload, s.base_quat, s.base_linvel)

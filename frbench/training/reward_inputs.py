@@ -1,7 +1,9 @@
 """`RewardInputs`: what frbench's reward terms (`frbench.training.rewards`) read at one control step.
 
 `frbench.training.step_reward.StepReward` builds it from the episode engine after each step; tests build it by
-hand. Arrays have N rows (environments), SI units.
+hand. Arrays have N rows (environments), SI units: numpy arrays (evaluation, the CPU trainer) or torch tensors on
+one device (the device trainer, `frbench.training.device_env`); the reward terms compute in the namespace of
+``projected_gravity`` (`frbench.tasks.arrays`).
 """
 
 from __future__ import annotations
@@ -10,6 +12,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from frbench.tasks.arrays import float_dtype, like, namespace
 
 
 @dataclass
@@ -63,6 +67,21 @@ class RewardInputs:
     nominal_head_height: np.ndarray | float | None = None
     action_prev2: np.ndarray | None = None
     upper_body: np.ndarray | None = None
+
+    @property
+    def xp(self):
+        """The array namespace the terms compute in: that of ``projected_gravity``."""
+        return namespace(self.projected_gravity)
+
+    def as_float(self, value):
+        """``value`` (an array, sequence or scalar) as an array of the terms' namespace, device and float dtype
+        (float64 for numpy; ``projected_gravity``'s for torch); no copy when it already is one."""
+        ref = self.projected_gravity
+        return like(value, ref, float_dtype(self.xp, ref))
+
+    def as_bool(self, value):
+        """``value`` as a boolean array of the terms' namespace and device."""
+        return like(value, self.projected_gravity, self.xp.bool)
 
     @property
     def num_envs(self) -> int:

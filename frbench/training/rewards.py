@@ -1,7 +1,11 @@
 """FR-Net's reward terms (paper, Table "Reward terms for quadrupedal recovery").
 
-Every term is a function of one :class:`RewardInputs` (numpy arrays with N rows,
-SI units) returning the **unweighted** term, shape (N,), float64.
+Every term is a function of one :class:`RewardInputs` (arrays with N rows, SI
+units) returning the **unweighted** term, shape (N,): float64 numpy arrays for
+numpy inputs (evaluation, the CPU trainer), torch tensors on the inputs' device
+and float dtype for torch inputs (the device trainer). The terms are written
+once against the Array API standard (`frbench.tasks.arrays`); the numpy path is
+bit for bit the numpy-only code it replaced.
 :func:`compute_rewards` weights them with a :class:`RewardConfig` and sums.
 
 ====================  =====================================================  ==========
@@ -79,6 +83,7 @@ from typing import Callable, Mapping
 
 import numpy as np
 
+from frbench.tasks.arrays import sum_sq
 from frbench.training.reward_inputs import RewardInputs
 
 __all__ = [
@@ -96,6 +101,7 @@ __all__ = [
     "body_contact",
     "check_weights",
     "compute_rewards",
+    "term_arguments",
     "feet_contact",
     "feet_on_ground",
     "head_height",
@@ -140,99 +146,106 @@ STABILITY_TERMS: tuple[str, ...] = ("safety_force", "body_bias")
 stability_terms = STABILITY_TERMS
 
 
-def _sum_sq(x: np.ndarray) -> np.ndarray:
-    """Row-wise sum of squares of an (N, k) array, float64 (N,)."""
-    x = np.asarray(x, dtype=np.float64)
-    return np.einsum("ij,ij->i", x, x)
+def _f(x: RewardInputs, value):
+    """``value`` as an array in the inputs' namespace, device and float dtype (float64 for numpy)."""
+    return x.as_float(value)
 
 
 # --------------------------------------------------------------------------- orientation and posture
 
 
-def base_orientation(x: RewardInputs) -> np.ndarray:
+def base_orientation(x: RewardInputs):
     """g_x² + g_y²: 0 upright or on the back, 1 on the side. Paper weight −0.5."""
-    return _sum_sq(np.asarray(x.projected_gravity)[:, :2])
+    return sum_sq(_f(x, x.projected_gravity)[:, :2])
 
 
-def upright_orientation(x: RewardInputs, epsilon: float = DEFAULT_EPSILON) -> np.ndarray:
+def upright_orientation(x: RewardInputs, epsilon: float = DEFAULT_EPSILON):
     """exp(−(g_z + 1)² / (2 ε²)): 1 upright, exp(−2/ε²) on the back. Paper weight 6.0."""
-    gz = np.asarray(x.projected_gravity, dtype=np.float64)[:, 2]
-    return np.exp(-((gz + 1.0) ** 2) / (2.0 * epsilon**2))
+    gz = _f(x, x.projected_gravity)[:, 2]
+    return x.xp.exp(-((gz + 1.0) ** 2) / (2.0 * epsilon**2))
 
 
-def target_posture(x: RewardInputs, epsilon: float = DEFAULT_EPSILON, sigma2: float = 1.0) -> np.ndarray:
+def target_posture(x: RewardInputs, epsilon: float = DEFAULT_EPSILON, sigma2: float = 1.0):
     """exp(−Σ_j (q_j − q_stand,j)² / σ²) where |g_z + 1| < ε, else 0. Paper weight 4.0, σ² = 1 rad²."""
-    gz = np.asarray(x.projected_gravity, dtype=np.float64)[:, 2]
-    close = np.exp(-_sum_sq(np.asarray(x.q, dtype=np.float64) - x.q_stand) / sigma2)
-    return np.where(np.abs(gz + 1.0) < epsilon, close, 0.0)
+    xp = x.xp
+    gz = _f(x, x.projected_gravity)[:, 2]
+    close = xp.exp(-sum_sq(_f(x, x.q) - _f(x, x.q_stand)) / sigma2)
+    return xp.where(xp.abs(gz + 1.0) < epsilon, close, 0.0)
 
 
 # --------------------------------------------------------------------------- contacts
 
 
-def feet_contact(x: RewardInputs) -> np.ndarray:
+def _count(x: RewardInputs, flags):
+    """Row-wise number of true entries of (N, k) flags, in the inputs' float dtype (N,)."""
+    xp = x.xp
+    return x.as_float(xp.sum(xp.astype(x.as_bool(flags), xp.int64), axis=1))
+
+
+def feet_contact(x: RewardInputs):
     """Number of feet in contact, 0..F. Paper weight 0.3."""
-    return np.asarray(x.foot_contact, dtype=bool).sum(axis=1).astype(np.float64)
+    return _count(x, x.foot_contact)
 
 
-def body_contact(x: RewardInputs) -> np.ndarray:
+def body_contact(x: RewardInputs):
     """1 if any non-foot link touches anything, else 0. Paper weight −0.2."""
-    return np.asarray(x.body_contact, dtype=bool).astype(np.float64)
+    return _f(x, x.as_bool(x.body_contact))
 
 
 # --------------------------------------------------------------------------- stability
 
 
-def safety_force(x: RewardInputs) -> np.ndarray:
+def safety_force(x: RewardInputs):
     """Σ over knee groups of the horizontal contact force norm [N]. Paper weight −1e−2."""
-    return np.asarray(x.knee_force_xy, dtype=np.float64).sum(axis=1)
+    return x.xp.sum(_f(x, x.knee_force_xy), axis=1)
 
 
-def body_bias(x: RewardInputs) -> np.ndarray:
+def body_bias(x: RewardInputs):
     """Horizontal distance of the base from its start, clipped to [0, 4] m. Paper weight −0.1."""
-    d = np.asarray(x.base_xy, dtype=np.float64) - np.asarray(x.init_xy, dtype=np.float64)
-    return np.clip(np.sqrt(_sum_sq(d)), 0.0, BODY_BIAS_CLIP_M)
+    d = _f(x, x.base_xy) - _f(x, x.init_xy)
+    return x.xp.clip(x.xp.sqrt(sum_sq(d)), 0.0, BODY_BIAS_CLIP_M)
 
 
 # --------------------------------------------------------------------------- motion constraints
 
 
-def position_limits(x: RewardInputs) -> np.ndarray:
+def position_limits(x: RewardInputs):
     """Number of joints strictly outside [q_lower, q_upper]. Paper weight −1.0."""
-    q = np.asarray(x.q, dtype=np.float64)
-    return ((q > x.q_upper) | (q < x.q_lower)).sum(axis=1).astype(np.float64)
+    q = _f(x, x.q)
+    return _count(x, (q > _f(x, x.q_upper)) | (q < _f(x, x.q_lower)))
 
 
-def velocity_limit(x: RewardInputs, threshold: float | np.ndarray = DEFAULT_VELOCITY_THRESHOLD) -> np.ndarray:
+def velocity_limit(x: RewardInputs, threshold=DEFAULT_VELOCITY_THRESHOLD):
     """Σ_j max(|q̇_j| − threshold_j, 0) [rad/s]; threshold scalar or (J,). Paper weight −0.1.
 
     The default 0.8 rad/s is the paper's formula read literally (module docstring).
     """
-    excess = np.abs(np.asarray(x.qd, dtype=np.float64)) - np.asarray(threshold, dtype=np.float64)
-    return np.maximum(excess, 0.0).sum(axis=1)
+    xp = x.xp
+    excess = xp.abs(_f(x, x.qd)) - _f(x, threshold)
+    return xp.sum(xp.maximum(excess, 0.0), axis=1)
 
 
-def joint_acceleration(x: RewardInputs) -> np.ndarray:
+def joint_acceleration(x: RewardInputs):
     """Σ_j ((q̇_j − q̇_prev,j) / dt)² [rad²/s⁴], finite difference over one control step. Paper weight −2.5e−6."""
-    return _sum_sq((np.asarray(x.qd, dtype=np.float64) - x.qd_prev) / x.dt)
+    return sum_sq((_f(x, x.qd) - _f(x, x.qd_prev)) / x.dt)
 
 
-def joint_velocity(x: RewardInputs) -> np.ndarray:
+def joint_velocity(x: RewardInputs):
     """Σ_j q̇_j² [rad²/s²]. Paper weight −1e−2."""
-    return _sum_sq(x.qd)
+    return sum_sq(_f(x, x.qd))
 
 
-def action_smoothing(x: RewardInputs) -> np.ndarray:
+def action_smoothing(x: RewardInputs):
     """Σ_j (a_t,j − a_t−1,j)² (action units²). Paper weight −0.01."""
-    return _sum_sq(np.asarray(x.action, dtype=np.float64) - x.action_prev)
+    return sum_sq(_f(x, x.action) - _f(x, x.action_prev))
 
 
-def joint_torques(x: RewardInputs) -> np.ndarray:
+def joint_torques(x: RewardInputs):
     """Σ_j τ_j² [N²·m²]. Paper weight −5e−4."""
-    return _sum_sq(x.tau)
+    return sum_sq(_f(x, x.tau))
 
 
-def base_height(x: RewardInputs) -> np.ndarray:
+def base_height(x: RewardInputs):
     """clip(h / h_nominal, 0, 1): base height above the terrain relative to standing. Not in the paper.
 
     frbench's training adds it (weight 2, recorded as a deviation): without a
@@ -243,7 +256,7 @@ def base_height(x: RewardInputs) -> np.ndarray:
     """
     if x.base_height is None or x.nominal_height is None:
         raise ValueError("base_height needs RewardInputs.base_height and nominal_height")
-    return np.clip(np.asarray(x.base_height, dtype=np.float64) / np.asarray(x.nominal_height, dtype=np.float64), 0.0, 1.0)
+    return x.xp.clip(_f(x, x.base_height) / _f(x, x.nominal_height), 0.0, 1.0)
 
 
 # --------------------------------------------------------------------------- humanoid terms
@@ -255,40 +268,41 @@ def _needs(x: RewardInputs, term: str, *names: str) -> None:
         raise ValueError(f"{term} needs RewardInputs.{' and '.join(missing)}")
 
 
-def head_height(x: RewardInputs) -> np.ndarray:
+def head_height(x: RewardInputs):
     """clip(h_head / h_head,nominal, 0, 1): how far the head has risen towards standing (HoST, HumanUP)."""
     _needs(x, "head_height", "head_height", "nominal_head_height")
-    ratio = np.asarray(x.head_height, dtype=np.float64) / np.asarray(x.nominal_head_height, dtype=np.float64)
-    return np.clip(ratio, 0.0, 1.0)
+    ratio = _f(x, x.head_height) / _f(x, x.nominal_head_height)
+    return x.xp.clip(ratio, 0.0, 1.0)
 
 
-def feet_on_ground(x: RewardInputs) -> np.ndarray:
+def feet_on_ground(x: RewardInputs):
     """Fraction of the feet touching the ground, counted only once the base is above half its standing height
     (a robot lying with its soles on the floor earns nothing)."""
     _needs(x, "feet_on_ground", "base_height", "nominal_height")
-    fraction = np.asarray(x.foot_contact, dtype=bool).mean(axis=1)
-    risen = np.asarray(x.base_height, dtype=np.float64) >= 0.5 * np.asarray(x.nominal_height, dtype=np.float64)
-    return np.where(risen, fraction, 0.0)
+    xp = x.xp
+    fraction = xp.mean(_f(x, x.as_bool(x.foot_contact)), axis=1)
+    risen = _f(x, x.base_height) >= 0.5 * _f(x, x.nominal_height)
+    return xp.where(risen, fraction, 0.0)
 
 
-def upper_body_posture(x: RewardInputs, epsilon: float = DEFAULT_EPSILON) -> np.ndarray:
+def upper_body_posture(x: RewardInputs, epsilon: float = DEFAULT_EPSILON):
     """exp(−Σ_{waist, arms} (q − q_stand)²) [rad²] while upright (|g_z + 1| < ε), else 0."""
     _needs(x, "upper_body_posture", "upper_body")
-    gz = np.asarray(x.projected_gravity, dtype=np.float64)[:, 2]
-    mask = np.asarray(x.upper_body, dtype=bool)
-    error = (np.asarray(x.q, dtype=np.float64) - x.q_stand)[:, mask]
-    return np.where(np.abs(gz + 1.0) < epsilon, np.exp(-_sum_sq(error)), 0.0)
+    xp = x.xp
+    gz = _f(x, x.projected_gravity)[:, 2]
+    # a boolean column index (numpy and torch both take it; its copy's memory order is the numpy path's rounding)
+    error = (_f(x, x.q) - _f(x, x.q_stand))[:, x.as_bool(x.upper_body)]
+    return xp.where(xp.abs(gz + 1.0) < epsilon, xp.exp(-sum_sq(error)), 0.0)
 
 
-def action_jerk(x: RewardInputs) -> np.ndarray:
+def action_jerk(x: RewardInputs):
     """Σ_j (a_t − 2 a_{t−1} + a_{t−2})², the second difference of the actions (HoST's smoothness term)."""
     _needs(x, "action_jerk", "action_prev2")
-    a = np.asarray(x.action, dtype=np.float64)
-    return _sum_sq(a - 2.0 * np.asarray(x.action_prev, dtype=np.float64) + np.asarray(x.action_prev2, dtype=np.float64))
+    return sum_sq(_f(x, x.action) - 2.0 * _f(x, x.action_prev) + _f(x, x.action_prev2))
 
 
 #: Term name → function of the inputs (parameterised terms at their defaults).
-REWARD_TERMS: dict[str, Callable[[RewardInputs], np.ndarray]] = {
+REWARD_TERMS: dict[str, Callable[[RewardInputs], "np.ndarray"]] = {
     "base_orientation": base_orientation,
     "upright_orientation": upright_orientation,
     "target_posture": target_posture,
@@ -411,12 +425,27 @@ def check_weights(weights: dict[str, float]) -> None:
         raise ValueError(f"reward weights must be finite numbers, got {bad}")
 
 
-def compute_rewards(inputs: RewardInputs, config: RewardConfig | None = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """The reward of one control step for N environments.
+def term_arguments(config: RewardConfig, inputs: RewardInputs | None = None) -> dict[str, dict]:
+    """Each weighted term's keyword arguments from ``config`` (ε, σ², the velocity threshold), arrays made in the
+    namespace and device of ``inputs`` when given: a device caller converts them once, not every step."""
+    out = {}
+    for name in config.weights:
+        kwargs = _TERM_KWARGS[name](config) if name in _TERM_KWARGS else {}
+        if inputs is not None:
+            kwargs = {k: (inputs.as_float(v) if isinstance(v, tuple) else v) for k, v in kwargs.items()}
+        out[name] = kwargs
+    return out
+
+
+def compute_rewards(inputs: RewardInputs, config: RewardConfig | None = None,
+                    arguments: dict[str, dict] | None = None) -> tuple:
+    """The reward of one control step for N environments, numpy or torch (the inputs' arrays decide; torch
+    stays on its device).
 
     Args:
         inputs: the step's signals (shapes checked).
         config: weights and parameters; default: the paper's.
+        arguments: `term_arguments` of ``config`` made once by the caller (default: made here).
 
     Returns:
         (total (N,), terms) where ``terms`` maps each term in ``config.weights``
@@ -425,14 +454,14 @@ def compute_rewards(inputs: RewardInputs, config: RewardConfig | None = None) ->
     """
     config = RewardConfig() if config is None else config
     inputs.check()
+    arguments = term_arguments(config) if arguments is None else arguments
     scale = inputs.dt if config.scale_by_dt else 1.0
-    total = np.zeros(inputs.num_envs)
-    terms: dict[str, np.ndarray] = {}
+    total = inputs.as_float(inputs.xp.zeros(inputs.num_envs))
+    terms: dict = {}
     for name, weight in config.weights.items():
-        kwargs = _TERM_KWARGS[name](config) if name in _TERM_KWARGS else {}
-        value = REWARD_TERMS[name](inputs, **kwargs) * (weight * scale)
+        value = REWARD_TERMS[name](inputs, **arguments[name]) * (weight * scale)
         terms[name] = value
-        total += value
+        total = total + value
     return total, terms
 
 
