@@ -23,7 +23,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--steps", type=float, default=None, help="env-step budget (default 20e6; with --resume: extend the budget)")
     p.add_argument("--envs", type=int, default=256, help="parallel environments")
     p.add_argument("--backend", default=None, help="mujoco (default), pybullet, or mujoco+pybullet: "
-                   "half the environments in each simulator (with --resume: continue the run there, a new stage)")
+                   "half the environments in each simulator (with --resume: continue the run there, a new stage); "
+                   "mujoco-warp: the trainer that stays on the device (--device)")
+    p.add_argument("--device", default=None, choices=("cpu", "cuda"),
+                   help="--backend mujoco-warp: Warp's and torch's device (default cuda when present, else cpu)")
+    p.add_argument("--bundle", type=Path, default=None,
+                   help="--backend mujoco-warp: a prebuilt device bundle (tools/gpu_run/make_bundle.py) instead of "
+                        "building one here")
     p.add_argument("--terrains", default=None, help="comma-separated families (default: all seven)")
     p.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE", dest="fields",
                    help="set one training-env config field on top of the preset (repeatable), e.g. seed=1, "
@@ -178,6 +184,11 @@ def run(args) -> int:
     weights = reward_weight_changes(args.motion_penalties, args.reward_weight)
     if args.backend is not None and args.backend not in training_backend_names():
         raise unknown_name("backend", args.backend, training_backend_names())
+    if (args.device or args.bundle) and args.backend != "mujoco-warp":
+        raise FrbenchError("--device and --bundle are settings of --backend mujoco-warp")
+    if args.bundle is not None and not args.bundle.is_dir():
+        raise FrbenchError(f"--bundle {args.bundle}: no such folder")
+    device = {"device": args.device, "bundle": args.bundle} if args.backend == "mujoco-warp" else {}
     ranges = morphology_range_changes(args.morphology_range)
     if args.entropy_coef is not None and not args.entropy_coef >= 0:
         raise FrbenchError(f"--entropy-coef {args.entropy_coef}: expected a coefficient >= 0")
@@ -187,7 +198,7 @@ def run(args) -> int:
             raise FrbenchError("--resume continues a run with its own config; --preset and --set apply to new runs")
         run_ = TrainingRun(args.resume, total_steps=int(args.steps) if args.steps else None, resume=True,
                            checkpoint_every=args.checkpoint_every, command=command, reward_stage=weights,
-                           morphology_stage=ranges, backend_stage=args.backend, algorithm_stage=algorithm)
+                           morphology_stage=ranges, backend_stage=args.backend, algorithm_stage=algorithm, **device)
     else:
         if args.method not in METHODS and args.method != ADAPTATION_METHOD:
             raise unknown_name("training method", args.method, METHODS)
@@ -199,7 +210,7 @@ def run(args) -> int:
             overrides = {**(overrides or {}), "algorithm": {**(overrides or {}).get("algorithm", {}), **algorithm}}
         out = args.out or Path("runs") / args.method
         run_ = TrainingRun(out, args.method, env_cfg, int(args.steps), args.checkpoint_every, command,
-                           teacher=args.teacher, train_overrides=overrides)
+                           teacher=args.teacher, train_overrides=overrides, **device)
     run_.train()
     if run_.ranks.is_main:
         print(f"trained {run_.env_steps / 1e6:.2f}M env steps in {run_.wall / 60:.1f} min; policy at {run_.out / 'policy.pt'}")

@@ -115,7 +115,8 @@ class TrainingRun:
                  checkpoint_every: int = 20, command: str = "", resume: bool = False, teacher: Path | None = None,
                  reward_stage: dict[str, float] | None = None, morphology_stage: dict | None = None,
                  train_overrides: dict | None = None, backend_stage: str | None = None,
-                 algorithm_stage: dict[str, float] | None = None):
+                 algorithm_stage: dict[str, float] | None = None, device: str | None = None,
+                 bundle: Path | None = None):
         """``method="rma-adaptation"`` is RMA's phase 2: ``teacher`` is a finished ``rma`` run folder whose
         policy is frozen while the adaptation module learns; its env config is reused (with a 50-frame
         long history), ``env_cfg`` is ignored.
@@ -128,7 +129,8 @@ class TrainingRun:
         ``resume``), a backend name, continues the run in that simulator (e.g. ``mujoco+pybullet``: a MuJoCo-trained
         policy fine-tuned in both), recorded as a stage too. ``algorithm_stage`` (with ``resume``), PPO setting →
         value (``entropy_coef``), changes rsl-rl's algorithm config from the run's current step, recorded the
-        same way. ``train_overrides`` (new runs)
+        same way. ``device`` and ``bundle``: the device trainer's (``backend`` ``mujoco-warp``,
+        `frbench.training.device_env`). ``train_overrides`` (new runs)
         are merged into the method's rsl-rl config (e.g. ``{"actor": {"distribution_cfg": {"init_std": 0.2}}}``)
         and saved with it."""
         torch.set_num_threads(1)
@@ -170,7 +172,13 @@ class TrainingRun:
         self.checkpoint_every = checkpoint_every
         seed = distributed.rank_seed(env_cfg.seed, ranks.rank)  # each rank its own environments and draws
         torch.manual_seed(seed)
-        self.env = RecoveryTrainingEnv(env_cfg if seed == env_cfg.seed else dataclasses.replace(env_cfg, seed=seed))
+        env_cfg = env_cfg if seed == env_cfg.seed else dataclasses.replace(env_cfg, seed=seed)
+        if env_cfg.backend == "mujoco-warp":  # the trainer that stays on the device
+            from frbench.training.device_env import device_training_env
+
+            self.env = device_training_env(env_cfg, device, bundle)
+        else:
+            self.env = RecoveryTrainingEnv(env_cfg)
         sized = estimator_sized_for(train_cfg, self.env.env_masses.shape[1], len(self.env.spec.contact_groups),
                                     self.env.env_masses[0])
         if sized != train_cfg:  # e.g. the G1: 3 mass groups and 10 contact groups instead of 4 and 13
@@ -179,7 +187,8 @@ class TrainingRun:
             self.out.mkdir(parents=True, exist_ok=True)
             atomic_write_text(self.out / CONFIG_FILE, json.dumps(config, indent=1) + "\n")
         self.runner = distributed.runner_class()(self.env, json.loads(json.dumps(train_cfg)), log_dir=None,
-                                                 device=distributed.training_device())
+                                                 device=(self.env.device if env_cfg.backend == "mujoco-warp"
+                                                         else distributed.training_device()))
         self.losses = LossLog()  # the updates' losses in each logging window, for the learning curve
         self.tensorboard = TensorBoardCurve(self.out)
         self.policy_stats = LossLog(prefix="policy_")  # the action std and learning rate after each update

@@ -1,0 +1,63 @@
+"""The trainer that stays on the device (`frbench.training.device_env`) on Warp's CPU device: a tiny run (4
+worlds, 2 PPO iterations) through ``frbench train --backend mujoco-warp`` gives a checkpoint that ``frbench
+evaluate`` loads and scores; the bundle round-trips; the device env's groups are the numpy code's numbers."""
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+pytest.importorskip("mujoco_warp")
+
+from frbench.cli import main  # noqa: E402
+from frbench.tasks.observations import flatten, proprioception  # noqa: E402
+from frbench.training.config import TrainEnvConfig  # noqa: E402
+from frbench.training.device_bundle import build_bundle, load_bundle, save_bundle  # noqa: E402
+from frbench.training.device_env import DeviceTrainingEnv  # noqa: E402
+
+TINY = ["--envs", "4", "--terrains", "flat", "--set", "num_morphologies=2", "--set", "episode_steps=30",
+        "--set", "settle_steps=5"]
+
+
+def test_a_tiny_device_run_gives_a_checkpoint_that_evaluate_scores(tmp_path):
+    run = tmp_path / "run"
+    assert main(["train", "--backend", "mujoco-warp", "--device", "cpu", "--steps", "192", "--checkpoint-every", "1",
+                 "--out", str(run), *TINY]) == 0
+    config = json.loads((run / "config.json").read_text())
+    assert config["env"]["backend"] == "mujoco-warp" and config["env"]["num_envs"] == 4
+    curve = (run / "curve.csv").read_text().splitlines()
+    assert len(curve) == 3 and curve[2].startswith("2,192,")  # two iterations of 4 envs x 24 steps
+    out = tmp_path / "eval.json"
+    assert main(["evaluate", "--policy", str(run), "--robots", "go2", "--terrains", "flat", "--levels", "1",
+                 "--seeds", "0", "--episodes", "1", "--backends", "mujoco", "--out", str(out)]) == 0
+    assert len(json.loads(out.read_text())["episodes"]) == 1
+
+
+def test_the_bundle_round_trips_and_the_device_groups_are_the_numpy_codes(tmp_path):
+    cfg = TrainEnvConfig(num_envs=4, num_morphologies=2, families=("flat", "stairs"), episode_steps=12,
+                         settle_steps=5, seed=3)
+    bundle = build_bundle(cfg, starts_per_cell=1, log=lambda *_: None)
+    loaded = load_bundle(save_bundle(bundle, tmp_path / "bundle"))
+    assert loaded.config == cfg and set(loaded.arrays) == set(bundle.arrays)
+    assert len(loaded.arrays["bank_tile"]) == 20 * 2  # every tile, every variant once (none diverged)
+    np.testing.assert_array_equal(loaded.arrays["bank_qpos"], bundle.arrays["bank_qpos"])
+    env = DeviceTrainingEnv(loaded, "cpu", seed=0)
+    try:
+        rng = np.random.default_rng(0)
+        for _ in range(12):  # one whole episode, then the new episodes' first observation
+            obs = env.get_observations()
+            state = env.state
+            host = type(state)(**{k: getattr(state, k).double().numpy() for k in
+                                  ("base_pos", "base_quat", "base_linvel", "base_angvel", "q", "qd")})
+            o_t = flatten(proprioception(host, env.targets.double().numpy()), np.asarray(env.spec.default_pose))
+            o_t[:, -env.num_actions:] = env.action.numpy()
+            np.testing.assert_allclose(obs["policy"].numpy(), o_t, rtol=1e-5, atol=1e-5)
+            assert obs["privileged"].shape == (4, 277) and torch.isfinite(obs["privileged"]).all()
+            np.testing.assert_allclose(obs["mass"].numpy(), loaded.arrays["masses"], rtol=1e-6)
+            _, reward, done, _ = env.step(torch.as_tensor(rng.normal(0, 0.5, (4, env.num_actions)), dtype=torch.float32))
+            assert reward.shape == (4,) and torch.isfinite(reward).all()
+        assert bool(done.all()) and env.t == 0 and set(env.last_episode_stats) >= {"success_all", "success_flat"}
+        assert env.curriculum.level.min() >= 1
+    finally:
+        env.close()
