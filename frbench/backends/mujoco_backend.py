@@ -55,7 +55,27 @@ def default_threads() -> int:
     return int(os.environ.get("FRBENCH_MUJOCO_THREADS") or max(1, os.cpu_count() or 1))
 
 
-class MujocoBackend:
+class ModelLayout:
+    """Where a backend built on `build_model`'s ``self.model`` finds ``self.spec``'s state (`_read_layout`)."""
+
+    def _read_layout(self) -> None:
+        """Set ``link_names`` and the addresses: ``_qadr`` / ``_dadr`` (the canonical joints' qpos / qvel columns,
+        `as_slice`), ``_whole_state`` (`holds_whole_state`), ``_link_body`` (the links' bodies), ``_root_body``,
+        ``_base_mass`` [kg] (the root's compiled mass) and ``_terrain_geoms`` (the world body's geoms)."""
+        model = self.model
+        qadr, dadr = joint_addresses(model, self.spec)
+        self._qadr, self._dadr = as_slice(qadr), as_slice(dadr)
+        #: every coordinate is the free joint's or a canonical joint's: `divergence_mask` reads qpos and qvel whole
+        self._whole_state = holds_whole_state(model, self._qadr, self._dadr)
+        self.link_names = sim_robot_file(self.spec).links
+        link_body = np.array([model.body(name).id for name in self.link_names])
+        self._link_body = as_slice(link_body)
+        self._root_body = int(link_body[0])
+        self._base_mass = float(model.body_mass[self._root_body])
+        self._terrain_geoms = np.array([g for g in range(model.ngeom) if model.geom_bodyid[g] == 0], dtype=int)
+
+
+class MujocoBackend(ModelLayout):
     """N MuJoCo simulations of ``spec`` on ``terrain``. See `frbench.backends.base.Backend`."""
 
     name = "mujoco"
@@ -78,25 +98,10 @@ class MujocoBackend:
         self.physics_dt = float(self.model.opt.timestep)
         self.substeps = int(round(CONTROL_DT / self.physics_dt))
         self.batch = mjbatch.Batch(self.model, self.num_envs, nthread or default_threads(), persistent=True)
-        qadr, dadr = joint_addresses(self.model, spec)
-        self._qadr, self._dadr = as_slice(qadr), as_slice(dadr)
-        #: every coordinate is the free joint's or a canonical joint's: `divergence_mask` reads qpos and qvel whole
-        self._whole_state = (isinstance(self._qadr, slice) and isinstance(self._dadr, slice)
-                             and self._qadr == slice(7, self.model.nq) and self._dadr == slice(6, self.model.nv))
-        self.link_names = sim_robot_file(spec).links
-        link_body = np.array([self.model.body(name).id for name in self.link_names])
-        self._link_body = as_slice(link_body)
-        self._root_body = int(link_body[0])
-        self._base_mass = float(self.model.body_mass[self._root_body])
+        self._read_layout()
         self.has_variants = variants is not None
         if variants is not None:
-            specs, assignment, frictions, payloads = variants
-            models = []
-            for variant, friction, payload in zip(specs, frictions, payloads):
-                model = build_model(variant, self.terrain, friction=float(friction))
-                model.body_mass[model.body(sim_robot_file(variant).links[0]).id] += payload
-                models.append(model)
-            expand_variants(self.batch, self.model, models, np.asarray(assignment))
+            expand_variants(self.batch, self.model, variant_models(self.terrain, variants), np.asarray(variants[1]))
         self._qpos = self.batch.bind("qpos")
         self._qvel = self.batch.bind("qvel")
         self._ctrl = self.batch.bind("ctrl")
@@ -107,9 +112,6 @@ class MujocoBackend:
         self._bias = self.batch.expand("actuator_biasprm")
         self._force_range = self.batch.expand("actuator_forcerange")
         self._base_force = np.zeros((self.num_envs, 3))
-        self._terrain_geoms = np.array(
-            [g for g in range(self.model.ngeom) if self.model.geom_bodyid[g] == 0], dtype=int
-        )
         self._limits = np.asarray(spec.torque_limits)
         self._tau = np.zeros((self.num_envs, spec.n_joints))
         self.diverged = np.zeros(self.num_envs, dtype=bool)
@@ -122,19 +124,7 @@ class MujocoBackend:
     def set_params(self, params: PhysicsParams) -> None:
         """Per-simulation gains, motor strength and motor friction (the actuators' expanded fields), terrain
         friction and payload (without variants: theirs are compiled in)."""
-        j = self.spec.n_joints
-        strength = np.asarray(params.motor_strength, dtype=float)
-        if np.any(strength < 0):
-            raise ValueError("motor_strength: expected values >= 0 (the strength scales the PD's force range)")
-        self._gain[:, :j, 0] = strength * params.kp
-        self._bias[:, :j, 1] = -strength * params.kp
-        self._bias[:, :j, 2] = -strength * params.kd
-        self._force_range[:, :j, 0] = -strength * self._limits
-        self._force_range[:, :j, 1] = strength * self._limits
-        friction = np.zeros((self.num_envs, j)) if params.motor_friction is None else params.motor_friction
-        self._bias[:, j:, 2] = -np.asarray(friction) / MOTOR_FRICTION_VELOCITY
-        self._force_range[:, j:, 0] = -friction
-        self._force_range[:, j:, 1] = friction
+        write_actuator_params(self._gain, self._bias, self._force_range, params, self._limits)
         self.params = params
         if self.has_variants:
             return  # friction and payload are the variants' own
@@ -167,12 +157,7 @@ class MujocoBackend:
             self.set_base_force(self._base_force)
         qpos = self._qpos[ids]
         qvel = np.zeros((ids.size, self.model.nv))
-        qpos[:, 0:3] = state.base_pos
-        qpos[:, 3:7] = state.base_quat / np.linalg.norm(state.base_quat, axis=1, keepdims=True)
-        qpos[:, self._qadr] = state.q
-        qvel[:, 0:3] = state.base_linvel
-        qvel[:, 3:6] = state.base_angvel
-        qvel[:, self._dadr] = state.qd
+        write_state(qpos, qvel, state, self._qadr, self._dadr)
         self._qpos[ids] = qpos
         self._qvel[ids] = qvel
         self._ctrl[ids] = 0.0
@@ -201,26 +186,12 @@ class MujocoBackend:
         self.diverged |= self._divergence()
 
     def _divergence(self) -> np.ndarray:
-        """(N,) `divergence_mask` of the current state; read from qpos and qvel whole when they hold nothing but
-        the root and the canonical joints (|x| < limit is False for NaN and ±inf, so it covers finiteness)."""
-        if not self._whole_state:
-            return divergence_mask(self._raw_state())
-        return ~((np.abs(self._qpos) < DIVERGENCE_LIMIT).all(axis=1) & (np.abs(self._qvel) < DIVERGENCE_LIMIT).all(axis=1))
-
-    def _raw_state(self) -> RobotState:
-        qpos, qvel = self._qpos, self._qvel
-        return RobotState(
-            base_pos=qpos[:, 0:3].copy(),
-            base_quat=qpos[:, 3:7].copy(),
-            base_linvel=qvel[:, 0:3].copy(),
-            base_angvel=qvel[:, 3:6].copy(),
-            q=qpos[:, self._qadr].copy(),
-            qd=qvel[:, self._dadr].copy(),
-        )
+        """(N,) `divergence_mask` of the current state (`state_divergence`)."""
+        return state_divergence(self._qpos, self._qvel, self._qadr, self._dadr, self._whole_state)
 
     def state(self) -> RobotState:
         """State of every simulation (root frame, canonical joints, applied torques)."""
-        state = self._raw_state()
+        state = state_of(self._qpos, self._qvel, self._qadr, self._dadr)
         state.tau = self._tau.copy()
         return state
 
@@ -248,22 +219,102 @@ class MujocoBackend:
         """Net contact force per link from ``cfrc_ext`` (world frame), summarised by group. MuJoCo's ``cfrc_ext``
         also holds ``xfrc_applied``: the base force (`set_base_force`) is taken out again, so that an assist
         force is no contact (as in PyBullet, whose contacts are contact points)."""
-        link_force = np.array(self._cfrc_ext[:, self._link_body, 3:6])
-        if self._base_force.any():
-            link_force[:, 0] -= self._base_force
-        return summarize_contacts(self.spec, self.link_names, link_force)
+        return contacts_of(self.spec, self.link_names, self._cfrc_ext[:, self._link_body], self._base_force)
 
     def close(self) -> None:
         """Release the batch."""
         self.batch = None
 
 
-def expand_variants(batch: mjbatch.Batch, model: mujoco.MjModel, variants: list[mujoco.MjModel],
-                    assignment: np.ndarray) -> list[str]:
-    """Run simulation i of ``batch`` (built on ``model``) as ``variants[assignment[i]]``: every model field in
-    which a variant differs from ``model`` is expanded and given each simulation's value. The variants must be
-    compiled from robots with the same links, joints and geoms (same sizes); returns the expanded fields."""
-    changed = []
+def holds_whole_state(model: mujoco.MjModel, qadr, dadr) -> bool:
+    """Whether every coordinate of ``model`` is the root's free joint or a canonical joint (``qadr``, ``dadr``:
+    `as_slice` of `joint_addresses`), so that `state_divergence` may read qpos and qvel whole."""
+    return (isinstance(qadr, slice) and isinstance(dadr, slice)
+            and qadr == slice(7, model.nq) and dadr == slice(6, model.nv))
+
+
+def write_actuator_params(gain: np.ndarray, bias: np.ndarray, force_range: np.ndarray, params: PhysicsParams,
+                          limits: np.ndarray) -> None:
+    """Write ``params``' gains, strength and motor friction into the per-simulation actuator fields of a model
+    built by `build_model`, in place: ``gain`` (N, nu, 10) ``actuator_gainprm``, ``bias`` (N, nu, 10)
+    ``actuator_biasprm``, ``force_range`` (N, nu, 2) ``actuator_forcerange``; ``limits`` (J,) torque limits
+    [N·m]. Rows 0 … J−1 are the PD actuators, J … 2J−1 the motor friction (`frbench.backends.mujoco_model`)."""
+    j = len(limits)
+    strength = np.asarray(params.motor_strength, dtype=float)
+    if np.any(strength < 0):
+        raise ValueError("motor_strength: expected values >= 0 (the strength scales the PD's force range)")
+    gain[:, :j, 0] = strength * params.kp
+    bias[:, :j, 1] = -strength * params.kp
+    bias[:, :j, 2] = -strength * params.kd
+    force_range[:, :j, 0] = -strength * limits
+    force_range[:, :j, 1] = strength * limits
+    friction = np.zeros((len(strength), j)) if params.motor_friction is None else params.motor_friction
+    bias[:, j:, 2] = -np.asarray(friction) / MOTOR_FRICTION_VELOCITY
+    force_range[:, j:, 0] = -friction
+    force_range[:, j:, 1] = friction
+
+
+def write_state(qpos: np.ndarray, qvel: np.ndarray, state: RobotState, qadr, dadr) -> None:
+    """Write ``state`` (rows match) into ``qpos`` (n, nq) and ``qvel`` (n, nv) in place: the root's free joint
+    (quaternion normalised) and the canonical joints at ``qadr`` / ``dadr``."""
+    qpos[:, 0:3] = state.base_pos
+    qpos[:, 3:7] = state.base_quat / np.linalg.norm(state.base_quat, axis=1, keepdims=True)
+    qpos[:, qadr] = state.q
+    qvel[:, 0:3] = state.base_linvel
+    qvel[:, 3:6] = state.base_angvel
+    qvel[:, dadr] = state.qd
+
+
+def state_of(qpos: np.ndarray, qvel: np.ndarray, qadr, dadr) -> RobotState:
+    """The `RobotState` (fresh arrays, no torques) held in ``qpos`` (N, nq) and ``qvel`` (N, nv)."""
+    return RobotState(
+        base_pos=qpos[:, 0:3].copy(),
+        base_quat=qpos[:, 3:7].copy(),
+        base_linvel=qvel[:, 0:3].copy(),
+        base_angvel=qvel[:, 3:6].copy(),
+        q=qpos[:, qadr].copy(),
+        qd=qvel[:, dadr].copy(),
+    )
+
+
+def state_divergence(qpos: np.ndarray, qvel: np.ndarray, qadr, dadr, whole_state: bool) -> np.ndarray:
+    """(N,) `divergence_mask` of the state in ``qpos`` / ``qvel``; read from them whole when they hold nothing but
+    the root and the canonical joints (`holds_whole_state`; |x| < limit is False for NaN and ±inf, so it covers
+    finiteness)."""
+    if not whole_state:
+        return divergence_mask(state_of(qpos, qvel, qadr, dadr))
+    return ~((np.abs(qpos) < DIVERGENCE_LIMIT).all(axis=1) & (np.abs(qvel) < DIVERGENCE_LIMIT).all(axis=1))
+
+
+def contacts_of(spec: RobotSpec, link_names: tuple[str, ...], link_cfrc_ext: np.ndarray,
+                base_force: np.ndarray) -> Contacts:
+    """`Contacts` from the links' ``cfrc_ext`` rows (N, n_links, 6: torque, force; world frame), the base force
+    (N, 3) [N] taken out of the root's (MuJoCo's ``cfrc_ext`` also holds ``xfrc_applied``)."""
+    link_force = np.array(link_cfrc_ext[..., 3:6])
+    if base_force.any():
+        link_force[:, 0] -= base_force
+    return summarize_contacts(spec, link_names, link_force)
+
+
+def variant_models(terrain, variants) -> list[mujoco.MjModel]:
+    """The compiled models of morphology ``variants`` (specs, assignment, frictions, payloads) on ``terrain``:
+    each with its terrain friction and its payload [kg] on the root body."""
+    specs, _, frictions, payloads = variants
+    models = []
+    for variant, friction, payload in zip(specs, frictions, payloads):
+        model = build_model(variant, terrain, friction=float(friction))
+        model.body_mass[model.body(sim_robot_file(variant).links[0]).id] += payload
+        models.append(model)
+    return models
+
+
+def variant_fields(model: mujoco.MjModel, variants: list[mujoco.MjModel], assignment: np.ndarray,
+                   batchable) -> dict[str, np.ndarray]:
+    """Every model field in which a variant differs from ``model``, with each simulation's value
+    ((N, *shape): ``variants[assignment[i]]``'s). ``batchable(name)`` says whether a field can take
+    per-simulation values (a ValueError names the first that differs and cannot); the variants must be compiled
+    from robots with the same links, joints and geoms (same sizes)."""
+    changed = {}
     for name in sorted(n for n in dir(model) if isinstance(getattr(model, n, None), np.ndarray)):
         base = getattr(model, name)
         values = [getattr(v, name) for v in variants]
@@ -271,9 +322,19 @@ def expand_variants(batch: mjbatch.Batch, model: mujoco.MjModel, variants: list[
             raise ValueError(f"morphology variants: model field {name} has another shape than the base robot's")
         if all(np.array_equal(v, base) for v in values):
             continue
-        if name not in mjbatch.MODEL_FIELDS:
+        if not batchable(name):
             raise ValueError(f"morphology variants: model field {name} differs between variants but cannot be "
                              "given per-simulation values")
-        batch.expand(name)[:] = np.stack(values)[assignment]
-        changed.append(name)
+        changed[name] = np.stack(values)[assignment]
     return changed
+
+
+def expand_variants(batch: mjbatch.Batch, model: mujoco.MjModel, variants: list[mujoco.MjModel],
+                    assignment: np.ndarray) -> list[str]:
+    """Run simulation i of ``batch`` (built on ``model``) as ``variants[assignment[i]]``: every model field in
+    which a variant differs from ``model`` is expanded and given each simulation's value (`variant_fields`);
+    returns the expanded fields."""
+    changed = variant_fields(model, variants, assignment, lambda name: name in mjbatch.MODEL_FIELDS)
+    for name, values in changed.items():
+        batch.expand(name)[:] = values
+    return list(changed)

@@ -1,4 +1,5 @@
-"""The simulators frbench runs (MuJoCo, PyBullet): name → backend class, each imported on first use."""
+"""The simulators frbench runs (MuJoCo, PyBullet, MuJoCo Warp): name → backend class, each imported on first
+use (``mujoco-warp`` needs the ``gpu`` extra)."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from frbench.errors import unknown_name
 BACKENDS = {
     "mujoco": "frbench.backends.mujoco_backend:MujocoBackend",
     "pybullet": "frbench.backends.pybullet_backend:PybulletBackend",
+    "mujoco-warp": "frbench.backends.mujoco_warp_backend:MujocoWarpBackend",
 }
 
 

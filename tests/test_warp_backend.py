@@ -1,0 +1,203 @@
+"""The ``mujoco-warp`` backend (the ``gpu`` extra) against MuJoCo C, on Warp's CPU device here: the same model,
+actuation, contacts and per-world parameters; divergence and buffer overflows flagged. Few worlds, few steps
+(Warp's kernels compile once per machine, ≈ 40 s, then come from its cache)."""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import pytest
+
+pytest.importorskip("mujoco_warp", reason="the gpu extra (mujoco-warp, warp-lang) is not installed")
+
+from frbench.backends import BACKENDS, make_backend, training_backend_names  # noqa: E402
+from frbench.backends.base import PhysicsParams, RobotState  # noqa: E402
+from frbench.robots import get_robot  # noqa: E402
+from frbench.terrains import make_terrain  # noqa: E402
+
+N = 4
+#: Base position [m] and joint angle [rad] agreement after `SHORT_STEPS` control steps from settled starts on
+#: flat ground (measured: ≈ 1e-7 m and 1e-6 rad; float32 against float64).
+SHORT_STEPS = 5
+POSITION_TOLERANCE = 1e-5
+JOINT_TOLERANCE = 1e-4
+
+
+@pytest.fixture(scope="module")
+def go2():
+    return get_robot("go2")
+
+
+@pytest.fixture(scope="module")
+def settled(go2) -> RobotState:
+    """N of the protocol's fallen starts on flat ground, settled in MuJoCo C (velocities included)."""
+    from frbench.tasks.initial_states import draw_starts
+    from frbench.tasks.recovery import RecoveryTask
+
+    terrain = make_terrain("flat", 1, 0)
+    mujoco = make_backend("mujoco", go2, N, terrain=terrain)
+    task = RecoveryTask(go2, mujoco, terrain, N)
+    task.reset(draw_starts(go2, terrain, "flat", 1, 0, range(N)))
+    state = task.state.copy()
+    mujoco.close()
+    return state
+
+
+@pytest.fixture(scope="module")
+def warp(go2):
+    """One Warp backend of N Go2 worlds on flat ground, shared by the tests (each resets what it uses)."""
+    backend = make_backend("mujoco-warp", go2, N)
+    yield backend
+    backend.close()
+
+
+def _targets(pose: np.ndarray, steps: int) -> list[np.ndarray]:
+    """A smooth sweep of joint targets (0.3 rad) around ``pose`` (N, J) [rad], different in every world. Around
+    the settled starts' own angles: a sweep that crosses a leg over another makes box-box self-contacts, whose
+    contact points MuJoCo C and Warp choose differently (4 against 2 for a calf on a thigh: millimetres within
+    a step; docs/gpu.md)."""
+    pose = np.broadcast_to(pose, (N, np.shape(pose)[-1]))
+    phase = np.arange(N)[:, None] + np.arange(pose.shape[1])[None, :]
+    return [pose + 0.3 * np.sin(0.2 * t + phase) for t in range(steps)]
+
+
+def _run(backend, state: RobotState, targets: list[np.ndarray], params: PhysicsParams | None = None) -> RobotState:
+    backend.set_params(params if params is not None else PhysicsParams.nominal(backend.spec, backend.num_envs))
+    backend.reset(np.arange(backend.num_envs), state)
+    for target in targets:
+        backend.step(target)
+    return backend.state()
+
+
+def test_mujoco_warp_is_a_registered_simulator():
+    assert "mujoco-warp" in BACKENDS and "mujoco-warp" in training_backend_names()
+
+
+def test_warp_follows_mujoco_c_over_five_control_steps_from_settled_starts(go2, settled, warp):
+    assert warp.device == "cpu" and warp.substeps == 4 and warp.physics_dt == pytest.approx(0.005)
+    targets = _targets(settled.q, SHORT_STEPS)
+    want = _run(make_backend("mujoco", go2, N), settled, targets)
+    got = _run(warp, settled, targets)
+    assert not warp.diverged.any() and not warp.overflow.any()
+    assert np.abs(got.base_pos - want.base_pos).max() < POSITION_TOLERANCE
+    assert np.abs(got.q - want.q).max() < JOINT_TOLERANCE
+    assert np.abs(got.base_quat - want.base_quat).max() < 1e-4
+    assert np.abs(got.tau - want.tau).max() < 1e-2 * np.abs(want.tau).max()
+
+
+def test_contacts_masses_and_centre_of_mass_match_mujoco_c_at_rest(go2, warp):
+    standing = RobotState.standing(go2, N)
+    hold = [np.tile(go2.default_pose, (N, 1))] * 25
+    mujoco = make_backend("mujoco", go2, N)
+    _run(mujoco, standing, hold)
+    _run(warp, standing, hold)
+    want, got = mujoco.contacts(), warp.contacts()
+    weight = 9.81 * mujoco.mass_properties()[0]
+    vertical = got.link_force[:, :, 2].sum(axis=1)
+    assert np.allclose(vertical, weight, rtol=0.05)  # the feet carry the robot (still settling after 0.5 s)
+    assert np.allclose(vertical, want.link_force[:, :, 2].sum(axis=1), rtol=1e-4)
+    assert np.allclose(got.foot_force, want.foot_force, atol=1e-2)
+    assert (got.foot_contact == want.foot_contact).all() and got.foot_contact.all()
+    mass_c, com_c = mujoco.mass_properties()
+    mass_w, com_w = warp.mass_properties()
+    assert np.allclose(mass_w, mass_c, rtol=1e-6) and np.abs(com_w - com_c).max() < 1e-5
+
+
+def test_per_world_gains_strength_friction_payload_and_base_force_match_mujoco_c(go2, settled):
+    params = PhysicsParams.nominal(go2, N, friction=0.6)
+    params.kp = params.kp * np.array([0.8, 1.0, 1.2, 1.4])[:, None]
+    params.kd = params.kd * np.array([1.3, 1.0, 0.7, 1.1])[:, None]
+    params.motor_strength = np.full((N, go2.n_joints), 0.9)
+    params.friction = np.array([0.4, 0.8, 1.0, 1.5])
+    params.payload = np.array([0.0, 2.0, -1.0, 3.5])
+    params.motor_friction = np.full((N, go2.n_joints), 0.2)
+    force = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 40.0], [10.0, 0.0, 20.0], [0.0, -5.0, 0.0]])
+    targets = _targets(settled.q, 10)
+    states = {}
+    for name in ("mujoco", "mujoco-warp"):
+        backend = make_backend(name, go2, N)
+        backend.set_base_force(force)
+        states[name] = (_run(backend, settled, targets, params), backend.mass_properties(), backend.contacts())
+        if name == "mujoco-warp":
+            assert backend.warp_model.body_mass.shape == (N, backend.model.nbody)
+            assert backend.warp_model.actuator_gainprm.shape == (N, backend.model.nu)
+        backend.close()
+    (want, (mass_c, com_c), contacts_c), (got, (mass_w, com_w), contacts_w) = states.values()
+    assert np.abs(got.base_pos - want.base_pos).max() < 1e-4
+    assert np.abs(got.q - want.q).max() < 1e-3
+    assert np.allclose(mass_w, mass_c, rtol=1e-6) and np.abs(com_w - com_c).max() < 1e-4
+    assert np.allclose(contacts_w.link_force.sum(axis=1), contacts_c.link_force.sum(axis=1), atol=1.0)
+
+
+def test_morphology_variants_are_per_world_model_fields_that_match_mujoco_c(settled):
+    from frbench.training.randomization import morphology_specs, sample_morphologies
+
+    specs = morphology_specs(sample_morphologies(2, np.random.default_rng(5)))
+    variants = (specs, np.array([1, 0, 1, 0]), np.array([0.7, 1.2]), np.array([1.5, -0.5]))
+    standing = RobotState.standing(specs[0], N, clearance=0.05)
+    targets = _targets(np.asarray(specs[0].default_pose), 10)
+    runs = {}
+    for name in ("mujoco", "mujoco-warp"):
+        backend = make_backend(name, specs[0], N, variants=variants)
+        runs[name] = (_run(backend, standing, targets), backend.mass_properties())
+        if name == "mujoco-warp":
+            sizes = backend.warp_model.geom_size.numpy()
+            assert sizes.shape[0] == N and not np.allclose(sizes[0], sizes[1]) and np.allclose(sizes[0], sizes[2])
+        backend.close()
+    (want, (mass_c, com_c)), (got, (mass_w, com_w)) = runs.values()
+    assert np.allclose(mass_w, mass_c, rtol=1e-6) and not np.isclose(mass_c[0], mass_c[1])
+    assert np.abs(com_w - com_c).max() < 1e-4
+    assert np.abs(got.base_pos - want.base_pos).max() < 1e-5 and np.abs(got.q - want.q).max() < 1e-4
+
+
+def test_a_diverged_world_is_flagged_held_and_leaves_the_others_alone(go2, settled, warp):
+    bad = settled.copy()
+    bad.base_linvel[1] = [np.nan, 0.0, 0.0]
+    targets = _targets(settled.q, 3)
+    want = _run(make_backend("mujoco", go2, N), settled, targets)
+    got = _run(warp, bad, targets)
+    assert warp.diverged.tolist() == [False, True, False, False]
+    keep = [0, 2, 3]
+    assert np.abs(got.base_pos[keep] - want.base_pos[keep]).max() < POSITION_TOLERANCE
+    assert np.isfinite(warp.contacts().link_force).all()
+    warp.reset(np.array([1]), settled.take([1]))
+    assert not warp.diverged.any()
+
+
+def test_a_buffer_overflow_flags_the_world_and_is_logged(go2, settled, caplog):
+    from frbench.backends.mujoco_warp_backend import MujocoWarpBackend
+
+    backend = MujocoWarpBackend(go2, N, njmax=8)  # too few constraint rows for a robot lying on the ground
+    with caplog.at_level(logging.WARNING, logger="frbench.warp"):
+        _run(backend, settled, _targets(settled.q, 2))
+    assert backend.diverged.all() and (backend.overflow != 0).all()
+    assert "NEFC overflow" in caplog.text and "njmax 8" in caplog.text
+    backend.close()
+
+
+def test_device_state_shares_memory_and_advance_is_one_control_period(go2, settled, warp):
+    torch = pytest.importorskip("torch")
+    target = _targets(settled.q, 1)[0]
+    want = _run(warp, settled, [target])
+    warp.reset(np.arange(N), settled)
+    arrays = warp.device_state()
+    assert arrays["qpos"].shape == (N, warp.model.nq) and arrays["qpos"].dtype == torch.float32
+    arrays["ctrl"][:, : go2.n_joints] = torch.as_tensor(target, dtype=torch.float32)
+    warp.advance()
+    assert np.allclose(arrays["qpos"][:, :3].numpy(), want.base_pos, atol=1e-6)
+    assert np.allclose(warp.state().q, want.q, atol=1e-6)
+
+
+def test_the_gym_env_runs_on_mujoco_warp():
+    import gymnasium
+
+    import frbench.gym  # noqa: F401  (registers the env)
+
+    env = gymnasium.make_vec("frbench/FallRecovery-v1", num_envs=2, vectorization_mode="vector_entry_point",
+                             backend="mujoco-warp")
+    obs, _ = env.reset(seed=0)
+    obs, reward, _, _, info = env.step(np.zeros((2, env.single_action_space.shape[0]), dtype=np.float32))
+    assert obs.shape == (2, env.single_observation_space.shape[0]) and np.isfinite(reward).all()
+    assert not info["diverged"].any()
+    env.close()
