@@ -240,3 +240,19 @@ def load_bundle(folder) -> DeviceBundle:
     with np.load(folder / "arrays.npz") as data:
         arrays = {name.replace("__", "/"): data[name] for name in data.files}
     return DeviceBundle(model, arrays, meta)
+
+
+#: The arrays with one row per environment (`resized` repeats them).
+PER_ENV = ("assignment", "gainprm", "biasprm", "forcerange", "kp", "kd", "motor_strength", "friction", "payload",
+           "masses", "nominal_height", "family", "level")
+
+
+def resized(bundle: DeviceBundle, num_envs: int) -> DeviceBundle:
+    """``bundle`` for ``num_envs`` environments: its per-environment rows (`PER_ENV`: robot variant, physics,
+    labels, family and level) repeated in order, the config's ``num_envs`` changed; the world, rasters and bank
+    shared. One bundle serves a throughput sweep over batch sizes."""
+    n0 = len(bundle.arrays["assignment"])
+    rows = np.arange(int(num_envs)) % n0
+    arrays = {k: (v[rows] if k in PER_ENV else v) for k, v in bundle.arrays.items()}
+    meta = {**bundle.meta, "config": {**bundle.meta["config"], "num_envs": int(num_envs)}}
+    return DeviceBundle(bundle.model, arrays, meta)

@@ -48,6 +48,12 @@ from frbench.training.rewards import compute_rewards, term_arguments
 DIVERGENCE_LIMIT = 1e3
 #: Net link force [N] above which a link counts as touching (`frbench.backends.base.CONTACT_FORCE_THRESHOLD`).
 CONTACT_FORCE_THRESHOLD = None  # read from frbench.backends.base at construction
+#: MuJoCo model fields Warp's model does not hold; variants may differ in them
+#: (`frbench.backends.mujoco_warp_backend._NOT_IN_WARP`, repeated here: that module imports PyBullet's terrain
+#: code, which the GPU machine lacks).
+_NOT_IN_WARP = frozenset({"body_sameframe", "bvh_aabb", "dof_M0", "dof_length"})
+#: Warp's overflow bits that mean a buffer was too small (`frbench.backends.mujoco_warp_backend`).
+_BUFFER_OVERFLOWS = ("NEFC", "NJMAX_NNZ", "BROADPHASE", "NARROWPHASE", "CCD", "HFIELD", "NVMAX", "EPA_HORIZON")
 #: Raster geometry (`frbench.training.height_raster`).
 RESOLUTION, HALF_SIZE = None, None
 
@@ -209,7 +215,6 @@ class DeviceTrainingEnv(VecEnv):
 
         import mujoco
 
-        from frbench.backends.mujoco_warp_backend import _NOT_IN_WARP
         from frbench.backends.warp_model import batchable_fields, import_warp, put_batched_model
         from frbench.tasks.protocol import CONTROL_DT
 
@@ -243,9 +248,9 @@ class DeviceTrainingEnv(VecEnv):
         self.qfrc_actuator, self.cfrc_ext = wp.to_torch(d.qfrc_actuator), wp.to_torch(d.cfrc_ext)
         self.subtree_com, self.xpos, self.xmat = wp.to_torch(d.subtree_com), wp.to_torch(d.xpos), wp.to_torch(d.xmat)
         self.overflow = wp.to_torch(d.overflow)
-        from frbench.backends.mujoco_warp_backend import buffer_overflow_mask
-
-        self._overflow_mask = int(buffer_overflow_mask())
+        self._overflow_mask = 0
+        for name in _BUFFER_OVERFLOWS:
+            self._overflow_mask |= int(getattr(mjw.OverflowType, name))
         self._graph = None
 
     def advance(self) -> None:

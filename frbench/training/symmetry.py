@@ -51,7 +51,7 @@ class SignedPermutation:
     def __call__(self, x: torch.Tensor) -> torch.Tensor:
         if x.shape[-1] != len(self):
             raise ValueError(f"mirror: expected {len(self)} values in the last axis, got {x.shape[-1]}")
-        return x[..., self.index] * self.sign.to(x.dtype)
+        return x[..., self.index.to(x.device)] * self.sign.to(x.device, x.dtype)
 
     @staticmethod
     def concat(*parts: "SignedPermutation") -> "SignedPermutation":
