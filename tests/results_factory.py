@@ -169,7 +169,7 @@ def empty_board_copy(source, dest):
     from frbench.leaderboard import regenerate
 
     shutil.copytree(source, dest, ignore=shutil.ignore_patterns("policies"))
-    for record in (dest / "records").glob("*.json"):
+    for record in (dest / "records").glob("*.json*"):
         record.unlink()
     regenerate(dest)
     return dest

@@ -83,7 +83,7 @@ def _others_property(board: Path, case: tuple) -> None:
     command, values = case
     with sandbox(board) as root:
         results = write_results(root / "results.json", small_results(seeds=(7,)))
-        record = next((root / "leaderboard" / "records").glob("*.json"))
+        record = next((root / "leaderboard" / "records").glob("*.json.gz"))
         argv = {
             "submit": lambda v: ["submit", results, "--dry-run", "--name", v[0], "--description", v[1],
                                  "--submitter", v[2], "--link", v[3]],

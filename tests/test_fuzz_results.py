@@ -4,8 +4,8 @@ Results: a valid, self-consistent results object (`results_factory.small_results
 random places (a value replaced by any JSON value, NaN and infinities included; a field removed or added),
 or its text cut short or spliced, read by ``frbench submit`` (with and without ``--dry-run``), ``compare``
 and ``plot-results``. Records: a valid record likewise edited (submission fields, scores, id, the attached
-policy file and verifications too), placed in a temporary board and read by ``frbench leaderboard --check``,
-``leaderboard --format json`` and ``verify``.
+policy file and verifications too), stored as frbench stores records (gzip, ``records/<id>.json.gz``) in a
+temporary board and read by ``frbench leaderboard --check``, ``leaderboard --format json`` and ``verify``.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from fuzz_support import FRBENCH_DIRS, assert_clean, fuzz_settings, outcome, sandbox, snapshot  # noqa: E402
 from results_factory import empty_board_copy, small_results  # noqa: E402
 
-from frbench.leaderboard.jsonfile import pretty_json  # noqa: E402
+from frbench.leaderboard.jsonfile import gzip_bytes, pretty_json  # noqa: E402
 from frbench.leaderboard.records import build_record, submission_fields  # noqa: E402
 
 SMOKE, SLOW_RESULTS, SLOW_RECORDS = 8, 2500, 1500
@@ -112,8 +112,8 @@ def _records_property(board: Path, text: str, named_by_id: bool, command: str):
             name = json.loads(text)["id"] if named_by_id else RECORD["id"]
         except (ValueError, TypeError, KeyError, IndexError):
             name = RECORD["id"]
-        path = root / "leaderboard" / "records" / f"{name if isinstance(name, str) and name.isalnum() else RECORD['id']}.json"
-        path.write_text(text, encoding="utf-8")
+        path = root / "leaderboard" / "records" / f"{name if isinstance(name, str) and name.isalnum() else RECORD['id']}.json.gz"
+        path.write_bytes(gzip_bytes(text.encode("utf-8")))
         before = snapshot(root, FRBENCH_DIRS)
         argv = {"check": ("leaderboard", "--check"), "json": ("leaderboard", "--format", "json"),
                 "verify": ("verify", path, "--sample", "1")}[command]

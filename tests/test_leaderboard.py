@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import gzip
 import json
 import os
 import re
@@ -19,7 +20,14 @@ from frbench.errors import ResultsError
 from frbench.leaderboard import board as lb
 from frbench.leaderboard.jsonfile import canonical_json, pretty_json
 from frbench.leaderboard.paths import ENV_VAR, default_root
-from frbench.leaderboard.records import build_record, check_record, record_id, submission_fields
+from frbench.leaderboard.records import (
+    build_record,
+    check_record,
+    record_bytes,
+    record_id,
+    record_text,
+    submission_fields,
+)
 from frbench.leaderboard.render import md_escape, page_data, render_html, render_markdown, script_json
 from frbench.leaderboard.results import check_results
 from frbench.leaderboard.scores import main_track_shortfall
@@ -68,7 +76,7 @@ def submit(capsys, root: Path, path: Path, *extra: str) -> tuple[int, str, str]:
 
 
 def records_in(root: Path) -> list[Path]:
-    return sorted((root / "records").glob("*.json"))
+    return sorted((root / "records").glob("*.json*"))
 
 
 # --------------------------------------------------------------------------- the repository's leaderboard
@@ -367,16 +375,19 @@ def test_submit_writes_a_record_and_regenerates_the_board(root, tmp_path, capsys
     rid = record_id(results)
     assert out.startswith(f"added record {rid[:12]} (go2-scripted, partial track): overall success 0.563, sim-to-sim gap 0.125, 16 cells\n"
                           "partial, not ranked on the main board: 824 of the standard grid's 840 cells are missing\n")
-    assert [p.name for p in records_in(root)] == [f"{rid}.json"]
-    record = json.loads((root / "records" / f"{rid}.json").read_text())
+    assert [p.name for p in records_in(root)] == [f"{rid}.json.gz"]
+    stored = (root / "records" / f"{rid}.json.gz").read_bytes()
+    assert stored[:2] == b"\x1f\x8b" and stored[4:8] == b"\0\0\0\0"  # gzip, modification time 0: deterministic
+    record = json.loads(gzip.decompress(stored))
     assert record["results"] == results  # kept verbatim, per-episode records included
     assert record["submission"]["name"] == "go2-scripted" and record["submission"]["policy"] == "scripted"
     assert re.fullmatch(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ", record["submission"]["submitted"])
-    check_record(record, file_name=f"{rid}.json")
+    check_record(record, file_name=f"{rid}.json.gz")
+    assert stored == record_bytes(record) and len(stored) < len(record_text(record)) / 4
     readme = (root / "README.md").read_text()
     assert "go2\\-scripted" not in readme and "go2-scripted" in readme
     assert "Scripted controller \\& friends" in readme
-    assert f"[{rid[:12]}](records/{rid}.json)" in readme
+    assert f"[{rid[:12]}](records/{rid}.json.gz)" in readme
     assert rid in (root / "index.html").read_text()
     assert cli(capsys, "leaderboard", "--check", "--root", root)[0] == 0
 
@@ -417,7 +428,8 @@ def test_a_submission_is_refused_while_an_existing_record_is_invalid(root, tmp_p
     first = write_results(tmp_path / "a.json", small_results())
     assert submit(capsys, root, first)[0] == 0
     [record_path] = records_in(root)
-    record_path.write_text(record_path.read_text().replace('"successes": 4', '"successes": 3', 1))
+    edited = gzip.decompress(record_path.read_bytes()).decode().replace('"successes": 4', '"successes": 3', 1)
+    record_path.write_bytes(gzip.compress(edited.encode()))
     before = snapshot(root)
     second = write_results(tmp_path / "b.json", small_results(seeds=(7,)))
     status, _, err = submit(capsys, root, second)
@@ -452,7 +464,7 @@ def test_concurrent_submissions_all_land(root, tmp_path, capsys):
     done = _race(root, paths)
     assert [d.returncode for d in done] == [0, 0, 0, 0], [d.stderr for d in done]
     ids = sorted(record_id(small_results(seeds=(i,))) for i in range(4))
-    assert [p.stem for p in records_in(root)] == ids
+    assert [p.name[:64] for p in records_in(root)] == ids
     assert not [p for p in (root / "records").iterdir() if p.name.startswith(".incoming")]
     readme = (root / "README.md").read_text()
     assert all(f"racer{i}" in readme for i in range(4))
@@ -555,31 +567,50 @@ def test_check_reports_stale_and_invalid_files(populated, capsys):
     assert status == 1 and "index.html is missing; run `frbench leaderboard --format html`" in err
     cli(capsys, "leaderboard", "--format", "html", "--root", populated)
 
-    record = next(p for p in records_in(populated) if "tiny" in p.read_text())
-    original = record.read_text()
-    record.write_text(original.replace('"overall": 0.5625', '"overall": 0.9', 1))
+    def read(path: Path) -> str:
+        return gzip.decompress(path.read_bytes()).decode()
+
+    def write(path: Path, text: str) -> None:  # a record edited by hand: unpacked, changed, packed again
+        path.write_bytes(gzip.compress(text.encode(), mtime=0))
+
+    record = next(p for p in records_in(populated) if "tiny" in read(p))
+    rid = record.name[:64]
+    original = read(record)
+    write(record, original.replace('"overall": 0.5625', '"overall": 0.9', 1))
     status, _, err = cli(capsys, "leaderboard", "--check", "--root", populated)
     assert status == 1
     assert err.splitlines()[0] == (f"frbench leaderboard --check: {record}: scores: differ from the scores recomputed "
                                    "from results.cells (overall 0.9 recorded, 0.5625 recomputed)")
-    record.write_text(original.replace('"description": ""', '"description": "<script>alert(1)</script>"', 1))
+    write(record, original.replace('"description": ""', '"description": "<script>alert(1)</script>"', 1))
     status, _, err = cli(capsys, "leaderboard", "--check", "--root", populated)
     assert status == 1 and f"{record}: submission.description: '<script>" in err
-    record.write_text(original.replace('"protocol_version": "1.1"', '"protocol_version": "0.9"', 1))
+    write(record, original.replace('"protocol_version": "1.1"', '"protocol_version": "0.9"', 1))
     status, _, err = cli(capsys, "leaderboard", "--check", "--root", populated)
     assert status == 1 and f"{record}: results.protocol_version: unknown protocol version '0.9'; known: 1.0, 1.1" in err
-    record.write_text(original.replace('"created": "2026-11-22T01:23:45Z"', '"created": "2026-11-22T01:23:46Z"', 1))
+    write(record, original.replace('"created": "2026-11-22T01:23:45Z"', '"created": "2026-11-22T01:23:46Z"', 1))
     status, _, err = cli(capsys, "leaderboard", "--check", "--root", populated)
-    assert status == 1 and f"{record}: id: {record.stem} is not the sha256 of the record's results (" in err
-    record.write_text(original[:1000])
+    assert status == 1 and f"{record}: id: {rid} is not the sha256 of the record's results (" in err
+    write(record, original[:1000])
     status, _, err = cli(capsys, "leaderboard", "--check", "--root", populated)
     assert status == 1 and f"{record}: not valid JSON: the text ends early" in err
-    record.write_text(original)
-    renamed = record.with_name("0" * 64 + ".json")
+    record.write_bytes(gzip.compress(original.encode(), mtime=0)[:-100])  # the compressed file cut short
+    status, _, err = cli(capsys, "leaderboard", "--check", "--root", populated)
+    assert status == 1 and f"{record}: the gzip data ends early; is the file truncated?" in err
+    record.write_bytes(b"\x1f\x8b" + b"\0" * 40)
+    status, _, err = cli(capsys, "leaderboard", "--check", "--root", populated)
+    assert status == 1 and f"{record}: not a valid gzip file (" in err
+    write(record, original)
+    renamed = record.with_name("0" * 64 + ".json.gz")
     record.rename(renamed)
     status, _, err = cli(capsys, "leaderboard", "--check", "--root", populated)
-    assert status == 1 and f"{renamed}: file name: a record with id {record.stem} must be named {record.stem}.json" in err
+    assert status == 1 and f"{renamed}: file name: a record with id {rid} must be named {rid}.json.gz" in err
     renamed.rename(record)
+    plain = record.with_name(f"{rid}.json")  # the uncompressed form: reported with the command that compresses it
+    plain.write_text(original)
+    status, _, err = cli(capsys, "leaderboard", "--check", "--root", populated)
+    assert status == 1 and (f"{plain}: a record stored uncompressed; records are stored as <id>.json.gz: "
+                            f"run `gzip -9n {plain}` (or submit its results again)") in err
+    plain.unlink()
     (populated / "records" / ".incoming-x.tmp").write_text("{}")
     status, _, err = cli(capsys, "leaderboard", "--check", "--root", populated)
     assert status == 1 and "records/.incoming-x.tmp: not a record" in err

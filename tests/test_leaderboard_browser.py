@@ -234,7 +234,7 @@ def test_empty_board_page(tmp_path):
     done = chromium(tmp_path, "--dump-dom", (REPO_BOARD / "index.html").as_uri())
     assert done.returncode == 0 and console_errors(done.stderr) == []
     assert 'data-ready="true"' in done.stdout
-    if not list((REPO_BOARD / "records").glob("*.json")):
+    if not list((REPO_BOARD / "records").glob("*.json.gz")):
         assert "No records yet: submit one with frbench submit RESULTS.json." in done.stdout
 
 

@@ -9,6 +9,7 @@ cheat would: episodes edited (and everything recomputed so the record checks), t
 from __future__ import annotations
 
 import copy
+import gzip
 import json
 import shutil
 import sys
@@ -21,8 +22,9 @@ from frbench.evaluation.grid import EvaluationRequest, build_results, run_grid, 
 from frbench.evaluation.results import aggregate_cells, sim_to_sim, summarize
 from frbench.io import sha256_file
 from frbench.leaderboard import board as lb
+from frbench.leaderboard import policy_files
 from frbench.leaderboard.policy_files import MAX_POLICY_BYTES
-from frbench.leaderboard.records import build_record, load_record, record_text
+from frbench.leaderboard.records import build_record, load_record, record_text, write_record
 from frbench.leaderboard.render import page_data, render_table
 from frbench.leaderboard.verify import RELATIVE_TOLERANCE, compare_episode, sample_indices
 from frbench.policies.registry import shipped_checkpoint
@@ -41,11 +43,15 @@ def evaluate(policy: str) -> dict:
 
 @pytest.fixture(scope="module")
 def policies(tmp_path_factory) -> dict[str, Path]:
+    """Checkpoints of one's own: shipped ones loaded and saved again, so their bytes (and sha256) are not shipped."""
+    import torch
+
     folder = tmp_path_factory.mktemp("policies")
     out = {}
     for name in ("frnet-3m", "ppo-3m"):
         out[name] = folder / f"{name}.pt"
-        shutil.copy(shipped_checkpoint(name), out[name])
+        torch.save(torch.load(shipped_checkpoint(name), weights_only=False), out[name])
+        assert sha256_file(out[name]) != sha256_file(shipped_checkpoint(name))
     return out
 
 
@@ -79,7 +85,7 @@ def submitted(capsys, root: Path, tmp_path: Path, results: dict, policy: Path | 
     extra = ["--policy-file", policy] if policy else []
     status, out, err = cli(capsys, "submit", write(tmp_path / "results.json", results), "--root", root, *extra)
     assert (status, err) == (0, ""), err
-    return next((root / "records").glob("*.json"))
+    return next((root / "records").glob("*.json.gz"))
 
 
 def verify(capsys, record: Path, *extra) -> tuple[int, str, str]:
@@ -138,10 +144,37 @@ def test_a_policy_file_that_cannot_be_the_results_policy_is_refused(case, capsys
 def test_a_policy_file_is_attached_to_results_already_on_the_board_once(capsys, root, tmp_path, policies, honest):
     path = submitted(capsys, root, tmp_path, honest, None)
     status, out, err = cli(capsys, "submit", tmp_path / "results.json", "--root", root, "--policy-file", policies["frnet-3m"])
-    assert status == 0 and out.startswith("attached policies/") and sorted((root / "records").glob("*.json")) == [path]
+    assert status == 0 and out.startswith("attached policies/") and sorted((root / "records").glob("*.json*")) == [path]
     assert load_record(path)["policy_file"]["sha256"] == sha256_file(policies["frnet-3m"])
     status, _, err = cli(capsys, "submit", tmp_path / "results.json", "--root", root, "--policy-file", policies["frnet-3m"])
     assert status == 2 and "carries a policy file already" in err
+
+
+def test_a_shipped_checkpoint_is_referred_to_by_its_hash_not_stored_again(capsys, root, tmp_path, monkeypatch):
+    shipped = shipped_checkpoint("frnet-3m")
+    results = evaluate(str(shipped))
+    status, out, err = cli(capsys, "submit", write(tmp_path / "results.json", results), "--root", root,
+                           "--policy-file", shipped)
+    assert (status, err) == (0, "") and ("attached policy file shipped: frnet-3m (860469 bytes) (a checkpoint shipped in "
+                                         "frbench: referred to by its sha256, not stored again)") in out
+    path = next((root / "records").glob("*.json.gz"))
+    record = load_record(path)
+    sha = sha256_file(shipped)
+    assert record["policy_file"] == {"sha256": sha, "bytes": shipped.stat().st_size, "shipped": "frnet-3m"}
+    assert not (root / "policies").exists() or not list((root / "policies").iterdir())  # nothing stored
+    assert page_data([record])["records"][0]["policy_file"] == "shipped: frnet-3m"
+    assert f"the checkpoint shipped in frbench as frnet-3m (sha256 {sha[:12]})" in (root / "README.md").read_text()
+    assert cli(capsys, "leaderboard", "--check", "--root", root)[0] == 0
+    status, out, _ = verify(capsys, path)
+    assert status == 0 and "policy: shipped frnet-3m" in out, out
+    # an frbench that no longer ships that checkpoint: --check and verify say so
+    monkeypatch.setattr(policy_files, "SHIPPED_CHECKPOINTS", {})
+    missing = (f"policy file: no checkpoint shipped with this frbench has the record's sha256 {sha[:16]}... "
+               "(it was shipped as 'frnet-3m')")
+    status, _, err = cli(capsys, "leaderboard", "--check", "--root", root)
+    assert status == 1 and missing in err
+    status, out, _ = verify(capsys, path)
+    assert status == 1 and missing in out
 
 
 # --------------------------------------------------------------------------- verify
@@ -178,8 +211,7 @@ def _rebuilt(results: dict, submission: dict, edit) -> dict:
 
 def _replace(root: Path, old: Path, record: dict) -> Path:
     old.unlink()
-    new = root / "records" / f"{record['id']}.json"
-    new.write_text(record_text(record), encoding="utf-8")
+    new = write_record(root, record)
     lb.regenerate(root)
     return new
 
@@ -200,9 +232,9 @@ def test_edited_episodes_are_caught(capsys, root, tmp_path, policies, honest):
     assert status == 1
     assert (f"mismatch: go2 mujoco flat level 1 seed 0 episode 1: success {not was['success']} -> {was['success']}; "
             f"time_to_recover {None if was['success'] else 1.5} -> {was['time_to_recover']}") in out
-    naive = json.loads(path.read_text())
+    naive = json.loads(gzip.decompress(path.read_bytes()))
     naive["results"]["episodes"][0]["energy"] += 1.0  # edited without recomputing: the record does not check
-    path.write_text(json.dumps(naive))
+    path.write_bytes(gzip.compress(json.dumps(naive).encode()))
     status, out, err = verify(capsys, path)
     assert status == 2 and err.count("\n") == 1 and "differs from the mean of its episodes' energy" in err
 

@@ -3,9 +3,10 @@
 ``frbench submit RESULTS.json [--name N --description D --submitter S --link URL --policy-file FILE]``
 checks a results file written by ``frbench evaluate`` (schema, self-consistency,
 known protocol version), recomputes its scores and adds it as
-``leaderboard/records/<id>.json``, then regenerates ``README.md`` and
-``index.html``. ``--policy-file`` stores the policy that produced the results
-beside the record (`frbench.leaderboard.policy_files`). Bad input: one line on
+``leaderboard/records/<id>.json.gz`` (gzip JSON, `frbench.leaderboard.records`), then
+regenerates ``README.md`` and ``index.html``. ``--policy-file`` stores the policy that produced the results
+beside the record, or refers to it by sha256 when it is a checkpoint shipped in frbench
+(`frbench.leaderboard.policy_files`). Bad input: one line on
 stderr naming the file and field, exit 2, nothing written.
 
 ``frbench leaderboard [--format table|md|html|json] [--robot R --backend B --terrain T]``
@@ -68,6 +69,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run_submit(args: argparse.Namespace) -> int:
     from frbench.leaderboard.board import submit
     from frbench.leaderboard.paths import resolve_root
+    from frbench.leaderboard.policy_files import policy_file_label
 
     root = resolve_root(args.root)
     outcome = submit(
@@ -77,9 +79,11 @@ def run_submit(args: argparse.Namespace) -> int:
     from frbench.leaderboard.render import fmt_score
 
     record = outcome.record
+    entry = record.get("policy_file")
     if outcome.attached_only:
-        print(f"attached {record['policy_file']['file']} to record {record['id'][:12]} ({record['submission']['name']}); "
-              f"wrote {outcome.path}; commit it with {root / record['policy_file']['file']}")
+        stored = "shipped" not in entry
+        print(f"attached {policy_file_label(entry)} to record {record['id'][:12]} ({record['submission']['name']}); "
+              f"wrote {outcome.path}; commit it" + (f" with {root / entry['file']}" if stored else ""))
         return 0
     scores = record["scores"]
     verb = "would add" if args.dry_run else "added"
@@ -92,9 +96,10 @@ def run_submit(args: argparse.Namespace) -> int:
         from frbench.leaderboard.scores import main_track_shortfall
 
         print(f"partial, not ranked on the main board: {main_track_shortfall(record['results']['cells'])}")
-    if "policy_file" in record:
-        print(f"{'would attach' if args.dry_run else 'attached'} policy file {record['policy_file']['file']} "
-              f"({record['policy_file']['bytes']} bytes)")
+    if entry is not None:
+        how = " (a checkpoint shipped in frbench: referred to by its sha256, not stored again)" if "shipped" in entry else ""
+        print(f"{'would attach' if args.dry_run else 'attached'} policy file {policy_file_label(entry)} "
+              f"({entry['bytes']} bytes){how}")
     if outcome.written:
         print(f"wrote {outcome.path}; commit it with {root / 'README.md'} and {root / 'index.html'}")
     return 0

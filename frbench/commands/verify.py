@@ -1,6 +1,6 @@
 """``frbench verify RECORD [--sample N] [--seed S]``: re-run a sample of a leaderboard record's episodes.
 
-RECORD is a record file (``leaderboard/records/<id>.json``) or a record id (or
+RECORD is a record file (``leaderboard/records/<id>.json.gz``) or a record id (or
 its first 8+ hex digits) in the leaderboard folder. The record is checked like
 ``frbench leaderboard --check`` does; then ``--sample`` episodes drawn with
 ``--seed`` are re-run with the record's policy and compared episode by episode
@@ -13,13 +13,8 @@ verification to the record, which the board and page then mark.
 from __future__ import annotations
 
 import argparse
-import re
 import sys
 from pathlib import Path
-
-from frbench.errors import FrbenchError
-
-ID_PREFIX = re.compile(r"^[0-9a-f]{8,64}$")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -42,15 +37,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _locate(text: str, root_option: str | None) -> tuple[Path, Path]:
     """(record file, leaderboard folder) for RECORD."""
     from frbench.leaderboard.paths import RECORDS, resolve_root
+    from frbench.leaderboard.records import ID_PREFIX_RE, find_record
 
     path = Path(text)
-    if ID_PREFIX.match(text) and not path.exists():
+    if ID_PREFIX_RE.match(text) and not path.exists():
         root = resolve_root(root_option)
-        matches = sorted((root / RECORDS).glob(f"{text}*.json"))
-        if len(matches) != 1:
-            found = "no record" if not matches else f"{len(matches)} records"
-            raise FrbenchError(f"record {text!r}: {found} in {root / RECORDS} with that id")
-        return matches[0], root
+        return find_record(root, text), root
     if root_option is not None:
         return path, resolve_root(root_option)
     return path, (path.parent.parent if path.parent.name == RECORDS else path.parent)

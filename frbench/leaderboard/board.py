@@ -24,14 +24,17 @@ from frbench.leaderboard.records import (
     DuplicateRecord,
     Submission,
     build_record,
-    create_exclusive,
+    UNCOMPRESSED_RECORD_RE,
+    compress_hint,
     load_record,
     load_records,
     locked,
+    record_file_name,
     record_files,
-    record_text,
+    record_path,
     replace_record,
     submission_fields,
+    write_record,
 )
 from frbench.leaderboard.render import render_html, render_markdown
 from frbench.leaderboard.results import check_results
@@ -119,7 +122,7 @@ def submit(
         attached = read_policy_file(policy_file, layout=split_reference(results["config"]["policy"])[1])
         check_attachable(attached, results, os.fspath(policy_file))
         record["policy_file"] = attached.entry()
-    path = root / RECORDS / f"{record['id']}.json"
+    path = record_path(root, record["id"])
     if dry_run:
         return Submission(record, path, written=False)
     short = record["id"][:12]
@@ -145,7 +148,7 @@ def submit(
         if attached is not None:
             store(root, attached)
         try:
-            create_exclusive(path, record_text(record))
+            write_record(root, record)
         except DuplicateRecord:
             raise ResultsError(duplicate) from None
         try:
@@ -159,7 +162,7 @@ def add_verification(root: Path, path: Path, entry: dict) -> dict:
     """Append a passed verification (`frbench verify --save`) to the record at ``path``; regenerate the pages."""
     with locked(root):
         records = load_records(root)
-        current = next((r for r in records if f"{r['id']}.json" == path.name), None)
+        current = next((r for r in records if record_file_name(r["id"]) == path.name), None)
         if current is None:
             raise FrbenchError(f"{path}: not a record of the leaderboard {root}; --save writes only into a leaderboard folder")
         record = {**current, "verifications": [*current.get("verifications", []), entry]}
@@ -185,7 +188,8 @@ def check(root: Path) -> CheckReport:
     report = CheckReport()
     paths, others = record_files(root)
     for other in others:
-        report.problems.append(f"{other}: not a record: record files are named <64 hex digits>.json (a leftover temporary file?)")
+        report.problems.append(compress_hint(other) if UNCOMPRESSED_RECORD_RE.match(other.name) else
+                               f"{other}: not a record: record files are named <64 hex digits>.json.gz (a leftover temporary file?)")
     for path in paths:
         try:
             report.records.append(load_record(path))

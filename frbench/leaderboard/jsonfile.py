@@ -3,7 +3,10 @@
 Reading refuses, with one line naming the file: files above a size limit (by
 ``stat`` before reading, and by never reading more than the limit), bytes that
 are not UTF-8, malformed or truncated JSON, duplicate keys, and a top level
-that is not an object. ``NaN``/``Infinity`` are read as
+that is not an object. A gzip file (recognised by its magic bytes, whatever
+its name: leaderboard records are stored as ``<id>.json.gz``) is read
+decompressed, the limit applying to the compressed and to the decompressed
+bytes, so a small file that inflates without bound is refused too. ``NaN``/``Infinity`` are read as
 :class:`~frbench.schemas.NonFinite` markers so schema validation can name the
 field that holds them.
 """
@@ -93,14 +96,46 @@ def read_capped(path: Path, limit: int, source: str, too_big) -> bytes:
     return data
 
 
+#: The first two bytes of every gzip file.
+GZIP_MAGIC = b"\x1f\x8b"
+
+
+def gunzip_capped(data: bytes, limit: int, source: str) -> bytes:
+    """The decompressed bytes of the gzip ``data``, refused (one line naming ``source``) when corrupt, truncated,
+    followed by other bytes, or above ``limit`` bytes once decompressed (never inflating more than ``limit`` + 1)."""
+    import zlib
+
+    inflater = zlib.decompressobj(wbits=16 + zlib.MAX_WBITS)  # gzip header and trailer
+    try:
+        out = inflater.decompress(data, limit + 1)
+    except zlib.error as exc:
+        raise ResultsError(f"{source}: not a valid gzip file ({exc})") from None
+    if len(out) > limit:
+        raise ResultsError(f"{source}: decompresses to more than the {_megabytes(limit)} limit; refusing to read it")
+    if not inflater.eof:
+        raise ResultsError(f"{source}: the gzip data ends early; is the file truncated?")
+    if inflater.unused_data:
+        raise ResultsError(f"{source}: {len(inflater.unused_data)} bytes follow the gzip data; expected one gzip member")
+    return out
+
+
+def gzip_bytes(data: bytes) -> bytes:
+    """``data`` gzip-compressed deterministically: level 9, no file name, modification time 0."""
+    import gzip
+
+    return gzip.compress(data, compresslevel=9, mtime=0)
+
+
 def read_json_object(path: str | os.PathLike, *, limit: int = MAX_RESULTS_BYTES, source: str | None = None) -> dict:
-    """Read a JSON object from ``path``, refusing files above ``limit`` bytes before reading them."""
+    """Read a JSON object from ``path`` (plain or gzip), refusing files above ``limit`` bytes before reading them."""
     path = Path(path)
     source = source or str(path)
     if path.is_dir():
         raise ResultsError(f"{source}: is a directory, not a JSON file")
     data = read_capped(path, limit, source, lambda size: f"{source}: file is {'' if size is None else _megabytes(size) + ', '}"
                        f"above the {_megabytes(limit)} limit; refusing to read it")
+    if data.startswith(GZIP_MAGIC):
+        data = gunzip_capped(data, limit, source)
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:

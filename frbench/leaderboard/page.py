@@ -338,7 +338,7 @@ PAGE_SCRIPT = r"""
     dlRow(dl, "Versions", keyTable(p.versions, function (v) { return v === null ? "\u2013" : v; }));
     dlRow(dl, "Checkpoint", p.policy.checkpoint === null ? "none (" + p.policy.name + ")" : p.policy.checkpoint);
     dlRow(dl, "Checkpoint sha256", p.policy.sha256);
-    dlRow(dl, "Policy file", rec.policy_file ? rec.policy_file + " (attached)" : "none attached");
+    dlRow(dl, "Policy file", rec.policy_file ? rec.policy_file + (rec.policy_file.startsWith("policies/") ? " (attached)" : "") : "none attached");
     var v = rec.verified;
     dlRow(dl, "Verified", v ? v.sample + " episodes in " + v.cells + " cells re-run and reproduced (" + v.mode + ", sample seed " +
           v.seed + ", " + v.policy + " policy, frbench " + v.frbench_commit.slice(0, 12) + ", " + v.verified + ")" : "not verified");

@@ -18,6 +18,15 @@ The policy file and its sidecar together may hold at most
 A file whose hash differs from the checkpoint the results were evaluated with
 (``results.policy.sha256``) is refused: the record must carry the policy that
 produced it.
+
+A file that is a checkpoint shipped inside the frbench package (the
+``SHIPPED_CHECKPOINTS`` of `frbench.policies.registry`, same sha256, no
+sidecar) is not stored again: the record refers to it by hash::
+
+    "policy_file": {"sha256": <hex>, "bytes": <size>, "shipped": <the name it is shipped under>}
+
+and `frbench verify` and ``frbench leaderboard --check`` find it among the
+shipped checkpoints by that hash (:func:`policy_path`); the name is for people.
 """
 
 from __future__ import annotations
@@ -25,6 +34,7 @@ from __future__ import annotations
 import os
 import re
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 
 from frbench.errors import FrbenchError, ResultsError
@@ -32,7 +42,7 @@ from frbench.io import sha256_file
 from frbench.leaderboard.jsonfile import read_capped
 from frbench.leaderboard.records import DuplicateRecord, create_exclusive
 from frbench.policies.contract import sidecar_path
-from frbench.policies.registry import BUILTIN_POLICIES
+from frbench.policies.registry import BUILTIN_POLICIES, SHIPPED_CHECKPOINTS, shipped_checkpoint
 
 #: Largest policy file (with its sidecar) a record may carry [bytes]: 16 MiB.
 MAX_POLICY_BYTES = 16 * 1024 * 1024
@@ -46,14 +56,32 @@ def _mib(size: int) -> str:
     return f"{size / (1024 * 1024):.1f} MiB"
 
 
+@lru_cache(maxsize=64)
+def _file_sha256(path: Path, mtime_ns: int, size: int) -> str:
+    return sha256_file(path)
+
+
+def shipped_with_hash(sha256: str) -> str | None:
+    """The name of the checkpoint shipped inside the frbench package whose sha256 is ``sha256`` (None if none)."""
+    for name in SHIPPED_CHECKPOINTS:
+        path = shipped_checkpoint(name)
+        if path.is_file():
+            stat = path.stat()
+            if _file_sha256(path, stat.st_mtime_ns, stat.st_size) == sha256:
+                return name
+    return None
+
+
 @dataclass(frozen=True)
 class PolicyFile:
-    """A policy file read for attaching: its bytes and stored name, and its sidecar's bytes (or None)."""
+    """A policy file read for attaching: its bytes and stored name, its sidecar's bytes (or None), and the name
+    of the shipped checkpoint it is (None: not one, or it has a sidecar; then it is stored)."""
 
     data: bytes
     sha256: str
     suffix: str
     sidecar: bytes | None = None
+    shipped: str | None = None
 
     @property
     def file(self) -> str:
@@ -61,7 +89,9 @@ class PolicyFile:
         return f"{POLICIES}/{self.sha256}{self.suffix}"
 
     def entry(self) -> dict:
-        """The record's ``policy_file`` field."""
+        """The record's ``policy_file`` field: a reference by hash to a shipped checkpoint, else the stored file."""
+        if self.shipped is not None:
+            return {"sha256": self.sha256, "bytes": len(self.data), "shipped": self.shipped}
         entry = {"sha256": self.sha256, "bytes": len(self.data), "file": self.file}
         if self.sidecar is not None:
             entry["sidecar_sha256"] = _sha256(self.sidecar)
@@ -98,7 +128,8 @@ def read_policy_file(path: str | os.PathLike, label: str = "--policy-file", layo
         raise ResultsError(f"{label}: the results were evaluated with the layout file {layout} (--spec), which cannot be "
                            "read here; submit where it is, so that it is attached with the policy")
     sidecar = _read_capped(sidecar, label, MAX_POLICY_BYTES - len(data)) if sidecar.is_file() else None
-    return PolicyFile(data, _sha256(data), path.suffix, sidecar)
+    sha = _sha256(data)
+    return PolicyFile(data, sha, path.suffix, sidecar, shipped_with_hash(sha) if sidecar is None else None)
 
 
 def check_attachable(policy_file: PolicyFile, results: dict, source: str) -> None:
@@ -117,7 +148,10 @@ def check_attachable(policy_file: PolicyFile, results: dict, source: str) -> Non
 
 
 def store(root: Path, policy_file: PolicyFile) -> None:
-    """Write the policy file (and sidecar) under ``root/policies`` unless an identical copy is there already."""
+    """Write the policy file (and sidecar) under ``root/policies`` unless an identical copy is there already, or
+    it is a shipped checkpoint (referred to by hash, stored nowhere)."""
+    if policy_file.shipped is not None:
+        return
     folder = root / POLICIES
     if folder.exists() and not folder.resolve().is_relative_to(root.resolve()):
         raise FrbenchError(f"{folder} leads outside the leaderboard folder {root}; refusing to write there")
@@ -132,8 +166,30 @@ def store(root: Path, policy_file: PolicyFile) -> None:
                 raise FrbenchError(f"{path} exists with other content than its name says; remove it and submit again") from None
 
 
+def policy_path(root: Path, entry: dict) -> Path | None:
+    """Where a record's policy file is: ``root/policies/...``, or the shipped checkpoint with its sha256 (None if
+    no shipped checkpoint has it)."""
+    if "shipped" in entry:
+        name = shipped_with_hash(entry["sha256"])
+        return None if name is None else shipped_checkpoint(name)
+    return root / entry["file"]
+
+
+def policy_file_label(entry: dict | None) -> str | None:
+    """How the board shows a record's policy file: ``policies/<sha256><suffix>`` (stored), ``shipped: <name>``
+    (a shipped checkpoint, by hash), or None."""
+    if entry is None:
+        return None
+    return f"shipped: {entry['shipped']}" if "shipped" in entry else entry["file"]
+
+
 def stored_problems(root: Path, entry: dict) -> list[str]:
     """What is wrong with a record's attached policy file in ``root`` (empty: present and unchanged)."""
+    if "shipped" in entry:
+        if shipped_with_hash(entry["sha256"]) is None:
+            return [f"policy file: no checkpoint shipped with this frbench has the record's sha256 "
+                    f"{entry['sha256'][:16]}... (it was shipped as {entry['shipped']!r})"]
+        return []
     path = root / entry["file"]
     if not entry["file"].split("/")[-1].startswith(entry["sha256"]):
         return [f"policy_file.file: {entry['file']} is not named by its sha256 {entry['sha256']}"]
@@ -159,7 +215,7 @@ def stray_files(root: Path, records: list[dict]) -> list[Path]:
     used = set()
     for record in records:
         entry = record.get("policy_file")
-        if entry:
+        if entry and "file" in entry:
             used.add(entry["file"].split("/")[-1])
             if "sidecar_sha256" in entry:
                 used.add(entry["file"].split("/")[-1] + ".json")

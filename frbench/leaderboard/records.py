@@ -7,11 +7,25 @@ A record (``record_schema_version`` 1, schema ``record-v1.schema.json``) is::
      "track": "main" | "partial", "scores": <recomputed>, "results": <the results, verbatim>}
 
 Records keep the results verbatim, per-episode records included, so anyone can
-re-check them and recompute the id; a full standard-grid record is a few MB.
-The id depends on the results only: the same results cannot be submitted twice
-under another name. Files are created atomically and exclusively (a complete
-temporary file hard-linked to ``records/<id>.json``, which fails if that name
-exists), so concurrent submissions never overwrite or half-write a record.
+re-check them and recompute the id. The id depends on the results only: the
+same results cannot be submitted twice under another name.
+
+Storage: one gzip file per record, ``records/<id>.json.gz`` (:func:`record_path`),
+holding the record's deterministic pretty JSON (:func:`record_text`) compressed
+at level 9 with no file name and modification time 0 (:func:`record_bytes`), so
+the same record always gives the same bytes; ``zcat`` shows it. A full
+standard-grid record is 3 MB of JSON and about 0.45 MB stored. The id is the
+hash of the results, not of the file, so compressing changed no id. A record
+named ``<id>.json`` (the uncompressed form frbench wrote before) is still read
+when given by path (`frbench verify FILE`); inside a leaderboard folder it is
+reported, with the command that compresses it. Files are created atomically
+and exclusively (:func:`write_record`: a complete temporary file hard-linked to
+its name, which fails if that name exists), so concurrent submissions never
+overwrite or half-write a record.
+
+The API other modules use: :func:`record_path`, :func:`write_record`,
+:func:`replace_record`, :func:`read_record` (a file, or an id or id prefix in a
+leaderboard folder), :func:`load_records` and :func:`record_files`.
 """
 
 from __future__ import annotations
@@ -28,8 +42,8 @@ from pathlib import Path
 from typing import Any, Iterator
 
 from frbench.errors import FrbenchError, ResultsError
-from frbench.io import atomic_write_text, sha256_text
-from frbench.leaderboard.jsonfile import MAX_RESULTS_BYTES, canonical_json, pretty_json, read_json_object
+from frbench.io import atomic_write_bytes, sha256_text
+from frbench.leaderboard.jsonfile import MAX_RESULTS_BYTES, canonical_json, gzip_bytes, pretty_json, read_json_object
 from frbench.leaderboard.paths import RECORDS
 from frbench.leaderboard.results import check_results
 from frbench.leaderboard.scores import record_scores, track_of
@@ -41,7 +55,13 @@ MAX_RECORD_BYTES = MAX_RESULTS_BYTES + 1024 * 1024
 
 NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$")
 LINK_RE = re.compile(r"^https?://[A-Za-z0-9.-]+(:[0-9]{1,5})?(/[A-Za-z0-9._~:/?#\[\]@!$&()*+,;=%-]*)?$")
-RECORD_FILE_RE = re.compile(r"^[0-9a-f]{64}\.json$")
+#: A record's file name: its id and this suffix (gzip JSON).
+RECORD_SUFFIX = ".json.gz"
+RECORD_FILE_RE = re.compile(r"^[0-9a-f]{64}\.json\.gz$")
+#: The uncompressed name frbench wrote before; still read by path, reported inside a leaderboard folder.
+UNCOMPRESSED_RECORD_RE = re.compile(r"^[0-9a-f]{64}\.json$")
+#: A record id, or the first 8 or more hex digits of one.
+ID_PREFIX_RE = re.compile(r"^[0-9a-f]{8,64}$")
 DESCRIPTION_MAX = 280
 SUBMITTER_MAX = 64
 LINK_MAX = 300
@@ -128,16 +148,38 @@ def build_record(results: dict, submission: dict) -> dict:
     return record
 
 
-def replace_record(path: Path, record: dict) -> None:
-    """Rewrite an existing record file atomically after checking the new content (its id cannot change)."""
-    check_record(record, file_name=path.name)
-    atomic_write_text(path, record_text(record))
-    os.chmod(path, 0o644)
+def record_file_name(record_id: str) -> str:
+    """The file name of the record with id ``record_id``: ``<id>.json.gz``."""
+    return f"{record_id}{RECORD_SUFFIX}"
+
+
+def record_path(root: Path, record_id: str) -> Path:
+    """Where the record with id ``record_id`` is stored in the leaderboard folder ``root``."""
+    return root / RECORDS / record_file_name(record_id)
 
 
 def record_text(record: dict) -> str:
-    """A record's file content (deterministic)."""
+    """A record's JSON text (deterministic): what its file decompresses to."""
     return pretty_json(record) + "\n"
+
+
+def record_bytes(record: dict) -> bytes:
+    """A record's file content: :func:`record_text` gzip-compressed deterministically (same record, same bytes)."""
+    return gzip_bytes(record_text(record).encode("utf-8"))
+
+
+def write_record(root: Path, record: dict) -> Path:
+    """Create the record's file in ``root`` atomically and exclusively; raise :class:`DuplicateRecord` if it exists."""
+    path = record_path(root, record["id"])
+    create_exclusive(path, record_bytes(record))
+    return path
+
+
+def replace_record(path: Path, record: dict) -> None:
+    """Rewrite an existing record file atomically after checking the new content (its id cannot change)."""
+    check_record(record, file_name=path.name)
+    atomic_write_bytes(path, record_bytes(record))
+    os.chmod(path, 0o644)
 
 
 def _differs(stored: Any, fresh: Any) -> bool:
@@ -166,8 +208,8 @@ def check_record(record: Any, *, file_name: str | None = None) -> None:
     expected = record_id(results)
     if record["id"] != expected:
         raise ResultsError(f"id: {record['id']} is not the sha256 of the record's results ({expected}); was the record edited?")
-    if file_name is not None and file_name != f"{expected}.json":
-        raise ResultsError(f"file name: a record with id {expected} must be named {expected}.json")
+    if file_name is not None and file_name not in (record_file_name(expected), f"{expected}.json"):
+        raise ResultsError(f"file name: a record with id {expected} must be named {record_file_name(expected)}")
     submission = record["submission"]
     check_name(submission["name"], "submission.name")
     check_text(submission["description"], "submission.description", DESCRIPTION_MAX)
@@ -191,7 +233,7 @@ def check_record(record: Any, *, file_name: str | None = None) -> None:
 
 
 def load_record(path: Path) -> dict:
-    """Read and fully check one record file; errors name the file."""
+    """Read (gzip or plain JSON) and fully check one record file; errors name the file."""
     record = read_json_object(path, limit=MAX_RECORD_BYTES)
     try:
         check_record(record, file_name=path.name)
@@ -200,8 +242,36 @@ def load_record(path: Path) -> dict:
     return record
 
 
+def find_record(root: Path, prefix: str) -> Path:
+    """The record file in ``root`` whose id starts with ``prefix`` (8 to 64 hex digits); one line if none or several."""
+    if not ID_PREFIX_RE.match(prefix):
+        raise FrbenchError(f"record {prefix[:80]!r}: expected a record id, or at least its first 8 hex digits")
+    matches = sorted((root / RECORDS).glob(f"{prefix}*{RECORD_SUFFIX}"))
+    if len(matches) != 1:
+        found = "no record" if not matches else f"{len(matches)} records"
+        raise FrbenchError(f"record {prefix!r}: {found} in {root / RECORDS} with that id")
+    return matches[0]
+
+
+def read_record(path_or_id: str | os.PathLike, root: Path | None = None) -> dict:
+    """A checked record: from a record file, or by its id (or an id prefix of 8+ hex digits) in the leaderboard
+    folder ``root`` (default: `frbench.leaderboard.paths.resolve_root`)."""
+    path = Path(path_or_id)
+    if isinstance(path_or_id, str) and ID_PREFIX_RE.match(path_or_id) and not path.exists():
+        from frbench.leaderboard.paths import resolve_root
+
+        path = find_record(root if root is not None else resolve_root(None), path_or_id)
+    return load_record(path)
+
+
+def compress_hint(path: Path) -> str:
+    """What to do with an uncompressed record file found in a leaderboard folder."""
+    return (f"{path}: a record stored uncompressed; records are stored as <id>{RECORD_SUFFIX}: "
+            f"run `gzip -9n {path}` (or submit its results again)")
+
+
 def record_files(root: Path) -> tuple[list[Path], list[Path]]:
-    """(record files, other files) in ``root/records``; ``.gitkeep`` is neither."""
+    """(record files ``<id>.json.gz``, other files) in ``root/records``; ``.gitkeep`` is neither."""
     folder = root / RECORDS
     if not folder.is_dir():
         return [], []

@@ -89,13 +89,14 @@ def _sha256(path: Path) -> str:
 def resolve_policy(record: dict, root: Path, report: Verification) -> str | None:
     """The policy reference to re-run (None after adding a failure); see the module doc for the order."""
     results = record["results"]
-    recorded = results["policy"]["sha256"]
     attached = record.get("policy_file")
+    recorded = results["policy"]["sha256"] or (attached or {}).get("sha256")
     if attached is not None:
         problems = stored_problems(root, attached)
         if problems:
             report.failures += problems
             return None
+    if attached is not None and "file" in attached:  # else a shipped checkpoint, found below by its sha256
         report.policy_kind = "attached"
         path = root / attached["file"]
         requested = results["config"]["policy"]
