@@ -18,7 +18,8 @@ Arrays (N environments, K robot variants, T terrain tiles, M bank entries, J joi
   ``assignment`` (N,) each environment's variant; every world's model gets its variant's value;
 * ``gainprm``, ``biasprm`` (N, nu, 10), ``forcerange`` (N, nu, 2): the actuators of each environment's physics
   (gains, motor strength, motor friction; one draw of the CPU trainer's randomisation, fixed for the run);
-  ``kp``, ``kd``, ``motor_strength`` (N, J), ``friction``, ``payload`` (N,): the same physics for the critic;
+  ``kp``, ``kd``, ``motor_strength``, ``motor_friction`` (N, J), ``friction``, ``payload`` (N,): the same physics
+  (the critic reads them);
 * ``masses`` (N, G) [kg], ``nominal_height`` (N,) [m], ``family``, ``level`` (N,): the estimator's mass labels,
   standing heights, each environment's curriculum family and first level;
 * ``tile_of_cell`` (F, L + 1): the raster row of (family, level); ``heights`` (T, n, n) float32 [m],
@@ -123,8 +124,9 @@ def build_bundle(cfg, starts_per_cell: int = STARTS_PER_CELL, log=print) -> Devi
     bias = np.repeat(model.actuator_biasprm[None], n, axis=0)
     force_range = np.repeat(model.actuator_forcerange[None], n, axis=0)
     write_actuator_params(gain, bias, force_range, params, np.asarray(spec.torque_limits))
+    motor_friction = np.zeros_like(params.kp) if params.motor_friction is None else params.motor_friction
     arrays.update(gainprm=gain, biasprm=bias, forcerange=force_range, kp=params.kp, kd=params.kd,
-                  motor_strength=params.motor_strength, friction=np.asarray(params.friction, dtype=float),
+                  motor_strength=params.motor_strength, motor_friction=motor_friction, friction=np.asarray(params.friction, dtype=float),
                   payload=np.zeros(n) if params.payload is None else np.asarray(params.payload, dtype=float),
                   masses=robots.env_masses, nominal_height=np.asarray(robots.nominal_height, dtype=float),
                   family=curriculum.family.copy(), level=curriculum.level.copy())
@@ -243,8 +245,8 @@ def load_bundle(folder) -> DeviceBundle:
 
 
 #: The arrays with one row per environment (`resized` repeats them).
-PER_ENV = ("assignment", "gainprm", "biasprm", "forcerange", "kp", "kd", "motor_strength", "friction", "payload",
-           "masses", "nominal_height", "family", "level")
+PER_ENV = ("assignment", "gainprm", "biasprm", "forcerange", "kp", "kd", "motor_strength", "motor_friction",
+           "friction", "payload", "masses", "nominal_height", "family", "level")
 
 
 def resized(bundle: DeviceBundle, num_envs: int) -> DeviceBundle:

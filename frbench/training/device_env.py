@@ -439,6 +439,7 @@ class DeviceTrainingEnv(VecEnv):
             self._arguments = term_arguments(self.reward_config, inputs)
         reward, terms = compute_rewards(inputs, self.reward_config, self._arguments)
         reward = torch.where(alive, torch.nan_to_num(reward), 0.0)
+        self.last_terms = terms  # the step's weighted terms (N,) each, for tests and benchmarks
         self.reward_means.add(terms, alive)
         self.history = torch.cat([self.history[:, 1:], o_t[:, None, :]], dim=1)
         done = self.t >= self.max_episode_length
