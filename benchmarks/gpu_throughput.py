@@ -10,8 +10,9 @@ For each batch size N: env steps per second of
 * training (rsl-rl's PPO + the FR-Net estimator, ``runner.learn``): the rollout (policy inference + environment)
   and the PPO update's share;
 
-and the first control period's time (Warp's kernel compile, or the kernel cache's load, and on a GPU the CUDA
-graph capture). Robots: Go2 with sampled morphologies on the training terrain grid (``go2``) and the G1
+the time to set the worlds up (``setup_s``: model and data put on the device, the first resets; with an empty
+kernel cache, ``--fresh-kernel-cache``, the compile of the kernels those run) and of the first control period
+(the step's kernels compiled or loaded, on a GPU the CUDA graph captured). Robots: Go2 with sampled morphologies on the training terrain grid (``go2``) and the G1
 (``g1``), from bundles built here (`device_bundle.build_bundle`) or given (``--bundle``), resized to each N.
 
     python benchmarks/gpu_throughput.py --device cpu --toy [--fresh-kernel-cache]  # 4 and 8 envs on Warp's CPU
@@ -68,7 +69,11 @@ def measure(bundle, n: int, device: str, steps: int, iterations: int, method: st
     from frbench.training.methods import make_train_cfg
     from frbench.training.run import estimator_sized_for
 
-    env = DeviceTrainingEnv(resized(bundle, n), device, seed=0)
+    _sync(device)
+    start = time.perf_counter()
+    env = DeviceTrainingEnv(resized(bundle, n), device, seed=0)  # model and data put, first resets (kernels loaded)
+    _sync(device)
+    setup = time.perf_counter() - start
     try:
         _sync(device)
         start = time.perf_counter()
@@ -93,7 +98,7 @@ def measure(bundle, n: int, device: str, steps: int, iterations: int, method: st
         one_reset()  # one episode end's resets, timed even when no episode ended within the steps
         reset_s = resets.total - before
         per_episode = env.max_episode_length * (env_time - before) / steps  # an episode's steps without resets
-        out = {"envs": n, "device": device, "first_control_period_s": round(first, 2),
+        out = {"envs": n, "device": device, "setup_s": round(setup, 2), "first_control_period_s": round(first, 2),
                "bare_env_steps_per_s": round(n * steps / bare.total, 1),
                "env_steps_per_s": round(n * steps / env_time, 1),
                "ratio_to_bare": round(bare.total / env_time, 3),

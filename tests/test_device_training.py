@@ -116,3 +116,18 @@ def test_the_device_env_and_the_cpu_trainer_agree_on_the_same_states_and_physics
     finally:
         device_env.close()
         cpu_env.close()
+
+
+def test_the_gpu_run_trains_the_symmetry_recipe_without_demo_starts_and_refused_settings_are_named():
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "tools" / "gpu_run" / "make_bundle.py"
+    spec = importlib.util.spec_from_file_location("make_bundle", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    cfg = module.training_config()
+    assert (cfg.backend, cfg.num_envs, cfg.demo_start_fraction, cfg.action_hold) == ("mujoco-warp", 4096, 0.0, 1)
+    # the symmetry preset's demo starts: a one-line error naming the field, exit status 2, before any work
+    assert main(["train", "--backend", "mujoco-warp", "--device", "cpu", "--preset", "symmetry", "--steps", "96",
+                 "--out", "/nonexistent/never-written", *TINY]) == 2

@@ -81,6 +81,17 @@ def _reward_dict(reward) -> dict:
             "overrides_reason": dict(reward.overrides_reason)}
 
 
+def check_device_config(cfg) -> None:
+    """Raise ``ValueError`` naming the first setting of ``cfg`` (a `TrainEnvConfig`) the device trainer lacks."""
+    unsupported = {"base_controller": cfg.base_controller, "long_history": cfg.long_history,
+                   "action_hold": cfg.action_hold != 1, "assist_force": cfg.assist_force,
+                   "demo_start_fraction": cfg.demo_start_fraction, "rise_start_fraction": cfg.rise_start_fraction}
+    for name, value in unsupported.items():
+        if value:
+            raise ValueError(f"{name}={getattr(cfg, name)!r} is a CPU-trainer setting; the device trainer runs "
+                             "q* = q̊ + scale·a every control step from bank starts (set it to its default)")
+
+
 def build_bundle(cfg, starts_per_cell: int = STARTS_PER_CELL, log=print) -> DeviceBundle:
     """The bundle of `TrainEnvConfig` ``cfg`` (module docstring); ``starts_per_cell`` settled starts per (tile,
     variant). Needs the CPU stack (MuJoCo C, Pinocchio, the robot files)."""
@@ -97,9 +108,7 @@ def build_bundle(cfg, starts_per_cell: int = STARTS_PER_CELL, log=print) -> Devi
     from frbench.training.reward_tables import with_joint_velocity_limits
     from frbench.training.terrain_grid import build_grid
 
-    if cfg.base_controller or cfg.long_history or cfg.action_hold != 1:
-        raise ValueError("the device trainer runs q* = q̊ + scale·a every control step: base_controller, "
-                         "long_history and action_hold are CPU-trainer settings")
+    check_device_config(cfg)
     # the CPU trainer's draws, in its order (`RecoveryTrainingEnv.__init__`)
     rng = np.random.default_rng(cfg.seed)
     grid = build_grid(cfg.families)

@@ -40,6 +40,7 @@ from tensordict import TensorDict
 from frbench.backends.base import RobotState
 from frbench.tasks.observations import flatten, proprioception
 from frbench.tasks.success import StepSignals, SuccessTracker
+from frbench.training.device_bundle import check_device_config
 from frbench.training.observation_groups import privileged_groups
 from frbench.training.reward_inputs import RewardInputs
 from frbench.training.rewards import compute_rewards, term_arguments
@@ -159,8 +160,7 @@ class DeviceTrainingEnv(VecEnv):
         cfg = bundle.config
         self.cfg_obj = cfg
         self.cfg = {"env": {k: (str(v) if k == "reward" else v) for k, v in cfg.to_dict().items()}}
-        if cfg.assist_force or cfg.demo_start_fraction or cfg.rise_start_fraction:
-            raise ValueError("the device trainer has no assist force, demo or rise starts (CPU-trainer settings)")
+        check_device_config(cfg)
         self.device = device = "cuda:0" if device == "cuda" else device
         self.torch_device = torch.device(device)
         self.num_envs = n = cfg.num_envs
