@@ -7,7 +7,8 @@ world, the batch's robots, the terrain rasters and a bank of settled fallen star
 `frbench.training.device_bundle.DeviceBundle`; after that nothing goes to the host per step:
 
 * actions → targets → physics: q* = clip(q̊ + scale·a, limits) written into Warp's ``ctrl`` (shared with torch
-  through ``wp.to_torch``), one control period of ``substeps`` ``mjw.step`` calls (on a GPU one CUDA graph);
+  through ``wp.to_torch``), one control period of ``substeps`` ``mjw.step`` calls and the kinematics of the new
+  state (on a GPU one CUDA graph);
 * the policy's observations, history, the critic's privileged view and the estimator's labels: the one
   implementation of `frbench.tasks.observations` and `frbench.training.observation_groups.privileged_groups`
   on tensors; the height scan and the terrain height from the bundle's rasters; the whole-body CoM is MuJoCo's
@@ -254,20 +255,27 @@ class DeviceTrainingEnv(VecEnv):
         self._graph = None
 
     def advance(self) -> None:
-        """One control period of every world with the ``ctrl`` held (on a GPU one CUDA graph, captured on first
-        use); nothing crosses to the host."""
-        wp, mjw = self._wp, self._mjw
+        """One control period of every world with the ``ctrl`` held, then the kinematics and centre-of-mass stage on
+        the new state (``xpos``, ``xmat``, ``subtree_com`` current, as the CPU backends' readings are; the step
+        itself computes them before integrating). On a GPU one CUDA graph, captured on first use; nothing crosses
+        to the host."""
+        wp = self._wp
         if self._graph is None and self.wp_device.startswith("cuda"):
             with wp.ScopedDevice(self.wp_device), wp.ScopedCapture() as capture:
-                for _ in range(self.substeps):
-                    mjw.step(self.warp_model, self.warp_data)
+                self._period()
             self._graph = capture.graph
         if self._graph is not None:
             wp.capture_launch(self._graph)
             return
         with wp.ScopedDevice(self.wp_device):
-            for _ in range(self.substeps):
-                mjw.step(self.warp_model, self.warp_data)
+            self._period()
+
+    def _period(self) -> None:
+        mjw, m, d = self._mjw, self.warp_model, self.warp_data
+        for _ in range(self.substeps):
+            mjw.step(m, d)
+        mjw.kinematics(m, d)
+        mjw.com_pos(m, d)
 
     def _forward(self) -> None:
         with self._wp.ScopedDevice(self.wp_device):

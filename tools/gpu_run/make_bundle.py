@@ -1,6 +1,6 @@
 """Prepare, on the CPU, what the GPU run (tools/gpu_run/run.sh) needs besides the working tree.
 
-    python tools/gpu_run/make_bundle.py [--out runs/gpu_payload] [--no-wheels]
+    python tools/gpu_run/make_bundle.py [--out runs/gpu_payload] [--no-wheels] [--flags-file FILE]
 
 Writes under ``--out`` (``runs/`` is git-ignored; the device tool carries it with ``carry``):
 
@@ -32,19 +32,24 @@ WHEELS = ("mujoco==4.0.0", "mujoco-core==4.0.0", "glfw==2.11.0", "mujoco-warp==4
           "absl-py==2.5.1")
 
 
-def train_flags() -> list[str]:
-    """The GPU run's ``frbench train`` flags (tools/gpu_run/train_flags.txt)."""
-    return shlex.split((ROOT / "tools" / "gpu_run" / "train_flags.txt").read_text())
+#: The GPU run's ``frbench train`` flags.
+FLAGS_FILE = ROOT / "tools" / "gpu_run" / "train_flags.txt"
 
 
-def training_config():
-    """The `TrainEnvConfig` that ``frbench train <train_flags>`` builds."""
+def train_flags(path: Path = FLAGS_FILE) -> list[str]:
+    """The ``frbench train`` flags in ``path`` (default: the GPU run's, tools/gpu_run/train_flags.txt)."""
+    return shlex.split(Path(path).read_text())
+
+
+def training_config(path: Path = FLAGS_FILE):
+    """The `TrainEnvConfig` that ``frbench train <the flags in path>`` builds."""
     from frbench.cli import build_parser
     from frbench.commands.train import morphology_range_changes, new_run_config, reward_weight_changes
 
-    args = build_parser().parse_args(["train", *train_flags()])
+    flags = train_flags(path)
+    args = build_parser().parse_args(["train", *flags])
     weights = reward_weight_changes(args.motion_penalties, args.reward_weight)
-    cfg, _ = new_run_config(args, "frbench train " + " ".join(train_flags()), weights,
+    cfg, _ = new_run_config(args, "frbench train " + " ".join(flags), weights,
                             morphology_range_changes(args.morphology_range))
     return cfg
 
@@ -54,20 +59,25 @@ def main(argv=None) -> int:
     parser.add_argument("--out", type=Path, default=ROOT / "runs" / "gpu_payload")
     parser.add_argument("--no-wheels", action="store_true", help="bundles only")
     parser.add_argument("--part-mb", type=int, default=48)
+    parser.add_argument("--flags-file", type=Path, default=FLAGS_FILE,
+                        help="the training flags the Go2 bundle is built for (run.sh: TRAIN_FLAGS_FILE)")
+    parser.add_argument("--g1-envs", type=int, default=256, help="environments of the G1 bundle (0: none)")
+    parser.add_argument("--python-version", default="3.12", help="the wheels' CPython version")
     args = parser.parse_args(argv)
     from frbench.training.config import TrainEnvConfig
     from frbench.training.device_bundle import build_bundle, save_bundle
 
-    cfg = training_config()
+    cfg = training_config(args.flags_file)
     print(f"go2 bundle: {cfg.num_envs} envs, {cfg.num_morphologies} morphologies, {len(cfg.families)} families")
     save_bundle(build_bundle(cfg), args.out / "go2")
-    g1 = TrainEnvConfig(num_envs=256, robot="g1", backend="mujoco-warp")
-    save_bundle(build_bundle(g1, starts_per_cell=2), args.out / "g1")
+    if args.g1_envs:
+        g1 = TrainEnvConfig(num_envs=args.g1_envs, robot="g1", backend="mujoco-warp")
+        save_bundle(build_bundle(g1, starts_per_cell=2), args.out / "g1")
     if not args.no_wheels:
         wheels = args.out / "wheels"
         wheels.mkdir(parents=True, exist_ok=True)
         subprocess.run([sys.executable, "-m", "pip", "download", "--no-deps", "--only-binary=:all:",
-                        "--python-version", "3.12", "--platform", "manylinux_2_28_x86_64", "--dest", str(wheels),
+                        "--python-version", args.python_version, "--platform", "manylinux_2_28_x86_64", "--dest", str(wheels),
                         *WHEELS], check=True)
         for wheel in wheels.glob("warp_lang-*.whl"):  # too large for one call: parts, joined on the GPU machine
             (wheels / "warp_lang.name").write_text(wheel.name + "\n")

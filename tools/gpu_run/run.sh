@@ -6,26 +6,30 @@
 #   bash tools/gpu_run/run.sh            # in the repository root of the lean tree, $OUT set by the device tool
 #
 # Expects runs/gpu_payload/{go2,g1,wheels} (tools/gpu_run/make_bundle.py; wheels/ without warp-lang's parts,
-# which earlier calls left in runs/stash/). TRAIN_SECONDS (default 300) bounds the training's wall clock.
+# which earlier calls left in runs/stash/). TRAIN_SECONDS (default 300) bounds the training's wall clock;
+# DEVICE (cuda), SWEEP_ENVS (256,1024,4096,8192), TRAIN_FLAGS_FILE (tools/gpu_run/train_flags.txt) and
+# PAYLOAD (runs/gpu_payload) exist for a dry run on a CPU (docs/gpu.md).
 set -euo pipefail
-P=runs/gpu_payload
+P=${PAYLOAD:-runs/gpu_payload}
+DEVICE=${DEVICE:-cuda}
+FLAGS=$(cat "${TRAIN_FLAGS_FILE:-tools/gpu_run/train_flags.txt}")
 OUT=${OUT:-/tmp/gpu-out}
-mkdir -p "$OUT" /tmp/gpu-site
+rm -rf /tmp/gpu-site && mkdir -p "$OUT" /tmp/gpu-site
 start=$(date +%s)
 log() { echo "[$(( $(date +%s) - start )) s] $*" | tee -a "$OUT/report.md"; }
 echo "# GPU run ($(date -u +%FT%TZ))" > "$OUT/report.md"
 nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader | tee -a "$OUT/report.md" || true
 WARP_WHEEL=/tmp/$(cat runs/stash/warp_lang.name 2>/dev/null || cat $P/wheels/warp_lang.name)
-cat runs/stash/warp_lang.whl.part-* > "$WARP_WHEEL"
+cat runs/stash/warp_lang.whl.part-* > "$WARP_WHEEL" 2>/dev/null || cat $P/wheels/warp_lang.whl.part-* > "$WARP_WHEEL"
 python -m pip install --quiet --no-index --no-deps --target /tmp/gpu-site "$WARP_WHEEL" $P/wheels/*.whl
 export PYTHONPATH=$PWD:/tmp/gpu-site GIT_PYTHON_REFRESH=quiet  # GitPython (rsl-rl) without a git executable
 log "installed: $(python -c 'import warp, mujoco, mujoco_warp, rsl_rl, tensordict; print("warp", warp.__version__, "mujoco", mujoco.__version__, "rsl_rl ok")')"
 log "throughput sweep"
-timeout 240 python benchmarks/gpu_throughput.py --device cuda --envs 256,1024,4096,8192 --steps 50 --iterations 1 \
-    --bundle $P/go2 --bundle-g1 $P/g1 --out "$OUT/throughput.json" >> "$OUT/throughput.log" 2>&1 || log "sweep: exit $?"
+timeout "${SWEEP_SECONDS:-240}" python benchmarks/gpu_throughput.py --device "$DEVICE" \
+    --envs "${SWEEP_ENVS:-256,1024,4096,8192}" --steps "${SWEEP_STEPS:-50}" --iterations 1 --bundle $P/go2 --bundle-g1 $P/g1 --out "$OUT/throughput.json" >> "$OUT/throughput.log" 2>&1 || log "sweep: exit $?"
 cat "$OUT/throughput.log" | grep '^{' >> "$OUT/report.md" || true
-log "training for ${TRAIN_SECONDS:-300} s: frbench train $(cat tools/gpu_run/train_flags.txt) --device cuda"
-timeout -s INT "${TRAIN_SECONDS:-300}" python -m frbench train $(cat tools/gpu_run/train_flags.txt) --device cuda \
+log "training for ${TRAIN_SECONDS:-300} s: frbench train $FLAGS --device $DEVICE"
+timeout -s INT "${TRAIN_SECONDS:-300}" python -m frbench train $FLAGS --device "$DEVICE" \
     --bundle $P/go2 --steps 5e9 --checkpoint-every 10 --out "$OUT/run" > "$OUT/train.log" 2>&1 || log "train: exit $? (the wall-clock budget ends it; the last checkpoint stands)"
 tail -c 2000 "$OUT/train.log" | tr '\r' '\n' | tail -5 >> "$OUT/report.md"
 [ -f "$OUT/run/curve.csv" ] && cp "$OUT/run/curve.csv" "$OUT/curve.csv"
