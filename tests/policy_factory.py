@@ -3,8 +3,11 @@ a Stable-Baselines3 model; and the one-cell evaluation the tests score them with
 
 from __future__ import annotations
 
+import contextlib
 import json
+import warnings
 from pathlib import Path
+from typing import Iterator
 
 from frbench.cli import main
 
@@ -32,17 +35,31 @@ def mlp(inputs: int = 42, outputs: int = 12, seed: int = 0, zero_output: bool = 
     return model.eval()
 
 
-def export_onnx(model, path: Path, inputs: int = 42, dynamic_batch: bool = False, dtype=None) -> Path:
-    """``torch.onnx.export`` of ``model`` as a user would write it: batch 1 unless ``dynamic_batch``."""
+def export_onnx(model, path: Path, inputs: int = 42, dynamic_batch: bool = False, dtype=None,
+                example: tuple | None = None, **options) -> Path:
+    """``torch.onnx.export`` of ``model`` as a user would write it with torch's current exporter (one file): batch 1
+    unless ``dynamic_batch``; ``example``: the example inputs (default one zero tensor (1, ``inputs``))."""
     import torch
 
-    example = torch.zeros(1, inputs, dtype=dtype or torch.float32)
+    from frbench.policies.export import quiet_onnx_exporter
+
+    example = example or (torch.zeros(1, inputs, dtype=dtype or torch.float32),)
     if dynamic_batch:
-        torch.onnx.export(model, (example,), str(path), input_names=["obs"], output_names=["actions"], dynamo=False,
-                          dynamic_axes={"obs": {0: "batch"}, "actions": {0: "batch"}})
-    else:
-        torch.onnx.export(model, (example,), str(path), dynamo=False)
+        options.update(input_names=["obs"], output_names=["actions"], dynamic_shapes=({0: "batch"},))
+    with quiet_onnx_exporter():
+        torch.onnx.export(model.eval(), example, str(path), dynamo=True, external_data=False, verbose=False, **options)
     return path
+
+
+@contextlib.contextmanager
+def writing_torchscript() -> Iterator[None]:
+    """Build a user's TorchScript policy file as other training setups write one (legged_gym's play.py traces its
+    actor and saves it; rsl-rl scripts it): torch 2.13 deprecates those calls, frbench still reads such files, and
+    the tests make them here, with the calls' deprecation warnings silenced for this and nothing else."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=r"`torch\.jit\.(trace|trace_method|script|save|load)` is deprecated",
+                                category=DeprecationWarning)
+        yield
 
 
 #: A Python policy file: a batched class, a single-environment class, a joint-target function and broken ones.

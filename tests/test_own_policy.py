@@ -14,7 +14,7 @@ from frbench.cli import main
 from frbench.policies.registry import load_policy
 from frbench.robots import get_robot
 from frbench.backends import make_backend
-from policy_factory import POLICY_FILE, evaluate, export_onnx, mlp
+from policy_factory import POLICY_FILE, evaluate, export_onnx, mlp, writing_torchscript
 
 ort = pytest.importorskip("onnxruntime")
 
@@ -82,7 +82,8 @@ def test_torchscript_frnet_with_the_spec_json_as_sidecar_gives_the_checkpoint_s_
     import torch
 
     path = folder / "frnet-script.pt"
-    torch.jit.save(torch.jit.script(load_policy("frnet").actor.as_jit()), str(path))
+    with writing_torchscript():  # as rsl-rl's export_policy_to_jit writes an actor
+        torch.jit.save(torch.jit.script(load_policy("frnet").actor.as_jit()), str(path))
     assert main(["spec", "--robot", "go2", "--policy", "frnet", "--json"]) == 0
     path.with_name(path.name + ".json").write_text(capsys.readouterr().out)
     results = evaluate(folder / "frnet-script.json", str(path))
@@ -100,8 +101,9 @@ def test_model_files_carry_their_layout_without_a_sidecar(folder, frnet_onnx):
     assert load_policy(str(alone / "frnet.onnx")).layout == load_policy(str(frnet_onnx)).layout
     assert load_policy(str(alone / "frnet.onnx")).layout.input_sizes(12) == {"obs": 42, "history": 210}
     layout = '{"observation": ["base_angvel", "projected_gravity", "joint_pos"], "action_scale": 0.5}'
-    torch.jit.save(torch.jit.trace(mlp(inputs=18), torch.zeros(1, 18)), str(alone / "small.pt"),
-                   _extra_files={"frbench_layout.json": layout})
+    with writing_torchscript():
+        torch.jit.save(torch.jit.trace(mlp(inputs=18), torch.zeros(1, 18)), str(alone / "small.pt"),
+                       _extra_files={"frbench_layout.json": layout})
     small = load_policy(str(alone / "small.pt"))
     assert small.layout.frame_size(12) == 18 and small.layout.action_scale == 0.5
     assert small.supports(get_robot("go1"))

@@ -8,7 +8,7 @@ import sys
 import pytest
 
 from frbench.cli import main
-from policy_factory import CELL, POLICY_FILE, export_onnx, mlp
+from policy_factory import CELL, POLICY_FILE, export_onnx, mlp, writing_torchscript
 
 pytest.importorskip("onnxruntime")
 
@@ -30,7 +30,8 @@ def _refused(tmp_path, capsys, policy: str, *extra: str) -> str:
 def _torchscript(model, path, inputs: int = 42):
     import torch
 
-    torch.jit.save(torch.jit.trace(model, torch.zeros(1, inputs)), str(path))
+    with writing_torchscript():
+        torch.jit.save(torch.jit.trace(model, torch.zeros(1, inputs)), str(path))
     return path
 
 
@@ -60,9 +61,8 @@ def test_a_model_of_the_wrong_size_or_dtype_names_the_expected_layout(tmp_path, 
             def forward(self, obs, history):
                 return obs[:, :12] + history[:, :12]
 
-        path = tmp_path / "m.onnx"
-        torch.onnx.export(Two(), (torch.zeros(1, 42), torch.zeros(1, 210)), str(path), dynamo=False,
-                          input_names=["obs", "history"])
+        path = export_onnx(Two(), tmp_path / "m.onnx", example=(torch.zeros(1, 42), torch.zeros(1, 210)),
+                           input_names=["obs", "history"])
     elif case == "torchscript-40-inputs":
         path = _torchscript(mlp(inputs=40), tmp_path / "m.pt", inputs=40)
     else:

@@ -10,12 +10,18 @@ layout, action scale, method) and, under ``"layout"``, the policy's
 `frbench.policies.contract.PolicyLayout`, which ``frbench evaluate --policy
 <file>.onnx`` reads; the ONNX file carries the same layout in its metadata
 (key ``frbench_layout``), so that the file alone can be evaluated.
+
+The graph comes from torch's current exporter (``torch.onnx.export(...,
+dynamo=True)``: ``torch.export`` then onnxscript's translation, opset 18),
+with a dynamic batch axis on every input and output.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 from pathlib import Path
+from typing import Iterator
 
 from frbench.errors import PolicyError
 from frbench.io import atomic_write_bytes, atomic_write_text, check_output_path
@@ -36,12 +42,49 @@ def onnx_module(policy):
     return model, list(model.input_names), list(model.output_names), inputs
 
 
+@contextlib.contextmanager
+def quiet_onnx_exporter() -> Iterator[None]:
+    """Run torch's ONNX exporter without the noise it makes on every export that no caller can avoid.
+
+    * A ``FutureWarning`` ("`isinstance(treespec, LeafSpec)` is deprecated"): torch 2.13's
+      ``ExportedProgram.run_decompositions`` deep-copies its module call graph, and copying re-creates the
+      ``LeafSpec`` leaves of its tree specs, a class torch itself deprecated. It is raised inside torch for any
+      model (frbench uses no ``LeafSpec``), so it is ignored here, by its message, and nowhere else.
+    * Log lines "torchvision is not installed. Skipping torchvision::nms" (four, at warning level, from
+      ``torch.onnx._internal.exporter._registration``): the exporter looks for torchvision's operators, which no
+      frbench policy uses; that logger is raised to ERROR while the exporter runs.
+    """
+    import logging
+    import warnings
+
+    registration = logging.getLogger("torch.onnx._internal.exporter._registration")
+    level = registration.level
+    registration.setLevel(logging.ERROR)
+    try:
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message=r"`isinstance\(treespec, LeafSpec\)` is deprecated",
+                                    category=FutureWarning)
+            yield
+    finally:
+        registration.setLevel(level)
+
+
+def dynamic_batch(input_names: list[str]) -> tuple[dict, ...]:
+    """``dynamic_shapes`` for ``torch.onnx.export``: axis 0 of every input is the batch, named `BATCH_AXIS`.
+
+    The first input names the axis; the others take ``Dim.DYNAMIC`` and the exporter finds them equal to it (the
+    network adds them up), so every input and output of the graph gets the one axis ``batch`` (naming it on
+    each input would make the exporter warn that the names collapse into one).
+    """
+    import torch
+
+    return tuple({0: BATCH_AXIS if i == 0 else torch.export.Dim.DYNAMIC} for i in range(len(input_names)))
+
+
 def export_onnx(policy_path: str, out: Path) -> Path:
     """Write ``out`` (.onnx) and its sidecar `sidecar_path(out)`; returns the ONNX path."""
     check_output_path(out, suffixes=(".onnx",))  # before torch is imported or anything loaded
     check_output_path(sidecar_path(out))
-    import io
-
     import torch
 
     policy = load_policy(policy_path)
@@ -53,10 +96,10 @@ def export_onnx(policy_path: str, out: Path) -> Path:
                           "Run it through frbench (frbench evaluate / render) instead")
     j = policy.num_actions
     model, input_names, output_names, inputs = onnx_module(policy)
-    buffer = io.BytesIO()
-    torch.onnx.export(model, inputs, buffer, export_params=True, opset_version=18,
-                      input_names=input_names, output_names=output_names, dynamo=False,
-                      dynamic_axes={name: {0: BATCH_AXIS} for name in input_names + output_names})
+    with quiet_onnx_exporter():
+        program = torch.onnx.export(model, inputs, None, export_params=True, opset_version=18, dynamo=True,
+                                    input_names=input_names, output_names=output_names, verbose=False,
+                                    dynamic_shapes=dynamic_batch(input_names))
     layout = learned_layout(policy)
     if [i.name for i in layout.inputs] != input_names:
         raise PolicyError(f"policy {policy_path!r}: its graph inputs {input_names} are not its layout's "
@@ -76,7 +119,7 @@ def export_onnx(policy_path: str, out: Path) -> Path:
     }
     import onnx
 
-    graph = onnx.load_model_from_string(buffer.getvalue())
+    graph = program.model_proto
     onnx.helper.set_model_props(graph, {EMBEDDED_LAYOUT_KEY: json.dumps({"layout": layout.to_dict(),
                                                                          "robot_kind": policy.robot_kind})})
     atomic_write_bytes(out, graph.SerializeToString())

@@ -7,11 +7,15 @@ _extra_files={"frbench_layout.json": layout_json})``), else frbench's default
 `PolicyLayout`.
 The module gets one float32 tensor (N, width) per layout input, in the layout's
 order, and returns actions (N, J) (or a tuple whose first element they are).
-frbench's trained actors script this way: ``torch.jit.script(actor.as_jit())``.
+Such files come from other training setups (legged_gym's ``play.py`` traces its
+actor and saves it; rsl-rl's ``export_policy_to_jit`` scripts it). torch 2.13
+deprecates TorchScript but still reads it; frbench reads these files and writes
+none (its own export is ONNX, `frbench.policies.export`).
 """
 
 from __future__ import annotations
 
+import warnings
 import zipfile
 from pathlib import Path
 
@@ -64,7 +68,12 @@ def load_torchscript_policy(path: Path, layout_file: str | None = None) -> Torch
 
     extra = {f"{EMBEDDED_LAYOUT_KEY}.json": ""}
     try:
-        module = torch.jit.load(str(path), map_location="cpu", _extra_files=extra)
+        with warnings.catch_warnings():
+            # torch 2.13 deprecates torch.jit.load in favour of torch.export, which cannot read a TorchScript file:
+            # a user's TorchScript policy is what their training setup wrote, and reading it is why this loader
+            # exists. The deprecation is torch's notice to the file's author, not something the reader can act on.
+            warnings.filterwarnings("ignore", message=r"`torch\.jit\.load` is deprecated", category=DeprecationWarning)
+            module = torch.jit.load(str(path), map_location="cpu", _extra_files=extra)
     except Exception as exc:  # torch raises many types for unreadable archives
         raise PolicyError(f"{path}: not a loadable TorchScript module ({type(exc).__name__}: "
                           f"{str(exc).splitlines()[0][:200] if str(exc) else ''})") from None
