@@ -312,6 +312,8 @@ class DeviceTrainingEnv(VecEnv):
         count = self.cell_count[cell]
         pick = (torch.rand(n, device=self.device, generator=self.generator) * count).long().clamp(max=count - 1)
         entry = self.cell_start[cell] + pick.clamp(min=0)
+        with self._wp.ScopedDevice(self.wp_device):  # MuJoCo's reset (solver warm start, time, forces cleared)
+            self._mjw.reset_data(self.warp_model, self.warp_data)
         self.qpos.copy_(self.bank_qpos[entry])
         self.qvel.copy_(self.bank_qvel[entry])
         self.ctrl.zero_()
