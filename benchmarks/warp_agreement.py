@@ -7,9 +7,15 @@ screening); from those settled states (velocities included, `RecordedStarts`) bo
 MuJoCo C, and the same joint targets replayed in Warp. Printed: the base position error ‖Δp‖ [m] at 0.1 / 0.5 /
 1 / 2 s, median and 95th percentile over the starts (and the worlds either simulator flagged diverged).
 
+**Speed.** ``--speed N``: world-steps per second (physics steps × worlds) of ``N`` worlds in MuJoCo Warp
+(on its device: the GPU when present, else the CPU) and in MuJoCo C (its thread pool), each robot and terrain
+family at level 5, the robots lying where their settled starts put them and tracking those angles.
+
 **Success.** ``--scripted results.json``: a results file of ``frbench evaluate --policy scripted --backends
 mujoco,mujoco-warp ...`` summarised per terrain and level: successes of each simulator pooled over seeds, with
-Wilson 95 % intervals, and whether each lies in the other's interval.
+Wilson 95 % intervals and whether each rate lies in the other's interval; then the episodes paired (the same
+seed and episode index: the same drawn start, settled in each simulator): how many ended the same way, the
+discordant pairs, and McNemar's exact p of the difference.
 
 Run (both parts, ≈ 15 min on 2 CPU cores with Warp on the CPU):
 
@@ -30,6 +36,8 @@ import numpy as np
 
 #: Times [s] at which the base position error is read.
 TIMES = (0.1, 0.5, 1.0, 2.0)
+#: Seconds each ``--speed`` measurement steps for (after one warm-up step).
+SPEED_SECONDS = 5.0
 
 
 def controller(spec):
@@ -117,28 +125,83 @@ def trajectory_table(args) -> list[dict]:
     return rows
 
 
+def speed_table(args) -> list[dict]:
+    """World-steps per second of ``args.speed`` worlds in each simulator (module docstring); printed."""
+    from common import timed
+
+    from frbench.backends import make_backend
+    from frbench.robots import get_robot
+    from frbench.tasks.initial_states import draw_starts
+    from frbench.tasks.recovery import RecoveryTask
+    from frbench.terrains import make_terrain
+
+    n, rows = args.speed, []
+    print(f"{'robot':6} {'terrain':8} {'worlds':>6} {'Warp':>12} {'MuJoCo C':>12}  world-steps/s")
+    for robot in args.robots.split(","):
+        spec = get_robot(robot)
+        for family in args.terrains.split(","):
+            terrain = make_terrain(family, 5, 0)
+            rates = {}
+            for name in ("mujoco-warp", "mujoco"):
+                backend = make_backend(name, spec, n, terrain=terrain)
+                task = RecoveryTask(spec, backend, terrain, n)
+                task.reset(draw_starts(spec, terrain, family, 5, 0, range(n)))
+                hold = task.state.q.copy()
+                rates[name] = timed(lambda: backend.step(hold), SPEED_SECONDS) * backend.substeps * n  # noqa: B023
+                backend.close()
+            print(f"{robot:6} {family:8} {n:>6} {rates['mujoco-warp']:>12.0f} {rates['mujoco']:>12.0f}  "
+                  f"(Warp on {_warp_device()})", flush=True)
+            rows.append({"robot": robot, "terrain": family, "worlds": n, "warp_world_steps_per_s": rates["mujoco-warp"],
+                         "mujoco_world_steps_per_s": rates["mujoco"], "warp_device": _warp_device()})
+    return rows
+
+
+def _warp_device() -> str:
+    from frbench.backends.warp_model import warp_device
+
+    return warp_device()
+
+
+def mcnemar_p(only_first: int, only_second: int) -> float:
+    """Two-sided exact McNemar p-value of paired outcomes: ``only_first`` pairs where only the first simulator
+    succeeded, ``only_second`` where only the second did (a binomial test of the discordant pairs at 1/2)."""
+    from math import comb
+
+    n, k = only_first + only_second, min(only_first, only_second)
+    if n == 0:
+        return 1.0
+    return min(1.0, 2 * sum(comb(n, i) for i in range(k + 1)) / 2 ** n)
+
+
 def success_table(path: str) -> list[dict]:
     """Successes per (robot, terrain, level) and simulator in a results file, pooled over seeds (module
-    docstring); printed as a table."""
+    docstring), and the episodes paired by seed and index: how many ended the same way and McNemar's p of the
+    difference; printed as a table."""
     from frbench.evaluation.intervals import wilson_interval
 
-    cells = json.loads(open(path).read())["cells"]
-    pooled: dict[tuple, dict[str, list[int]]] = {}
-    for cell in cells:
-        key = (cell["robot"], cell["terrain"], int(cell["level"]))
-        counts = pooled.setdefault(key, {}).setdefault(cell["backend"], [0, 0])
-        counts[0] += int(cell["successes"])
-        counts[1] += int(cell["episodes"])
+    episodes = json.loads(open(path).read())["episodes"]
+    outcome = {(e["robot"], e["terrain"], int(e["level"]), e["backend"], int(e["seed"]), int(e["episode"])):
+               bool(e["success"]) for e in episodes}
+    groups = sorted({key[:3] for key in outcome})
     rows = []
-    print(f"{'robot':6} {'terrain':8} {'lvl':>3} {'MuJoCo C':>24} {'Warp':>24}  each in the other's interval")
-    for (robot, family, level), counts in sorted(pooled.items()):
-        (sc, nc), (sw, nw) = counts["mujoco"], counts["mujoco-warp"]
-        ic, iw = wilson_interval(sc, nc), wilson_interval(sw, nw)
-        within = ic[0] <= sw / nw <= ic[1] and iw[0] <= sc / nc <= iw[1]
-        print(f"{robot:6} {family:8} {level:>3} {sc:>4}/{nc:<4} [{100 * ic[0]:4.1f}, {100 * ic[1]:5.1f}] "
-              f"{sw:>4}/{nw:<4} [{100 * iw[0]:4.1f}, {100 * iw[1]:5.1f}]  {'yes' if within else 'NO'}")
-        rows.append({"robot": robot, "terrain": family, "level": level, "mujoco": [sc, nc, *ic],
-                     "mujoco-warp": [sw, nw, *iw], "within": within})
+    print(f"{'robot':6} {'terrain':8} {'lvl':>3} {'MuJoCo C':>22} {'Warp':>22}  within  same outcome  "
+          f"C only / W only  McNemar p")
+    for robot, family, level in groups:
+        pairs = [(outcome[key], outcome.get((*key[:3], "mujoco-warp", *key[4:])))
+                 for key in outcome if key[:4] == (robot, family, level, "mujoco")]
+        pairs = [(c, w) for c, w in pairs if w is not None]
+        n = len(pairs)
+        sc, sw = sum(c for c, _ in pairs), sum(w for _, w in pairs)
+        only_c, only_w = sum(c and not w for c, w in pairs), sum(w and not c for c, w in pairs)
+        ic, iw = wilson_interval(sc, n), wilson_interval(sw, n)
+        within = ic[0] <= sw / n <= ic[1] and iw[0] <= sc / n <= iw[1]
+        p = mcnemar_p(only_c, only_w)
+        print(f"{robot:6} {family:8} {level:>3} {sc:>4}/{n:<4}[{100 * ic[0]:5.1f},{100 * ic[1]:6.1f}] "
+              f"{sw:>4}/{n:<4}[{100 * iw[0]:5.1f},{100 * iw[1]:6.1f}]  {'yes' if within else 'no':>6}  "
+              f"{n - only_c - only_w:>5}/{n:<5}  {only_c:>8} / {only_w:<6}  {p:9.2f}")
+        rows.append({"robot": robot, "terrain": family, "level": level, "episodes": n, "mujoco": [sc, *ic],
+                     "mujoco-warp": [sw, *iw], "within": within, "same_outcome": n - only_c - only_w,
+                     "only_mujoco": only_c, "only_warp": only_w, "mcnemar_p": p})
     return rows
 
 
@@ -150,9 +213,11 @@ def main() -> None:
     parser.add_argument("--starts", type=int, default=16, help="settled starts per cell")
     parser.add_argument("--seconds", type=float, default=max(TIMES), help="trajectory length [s]")
     parser.add_argument("--scripted", help="summarise this results file instead of measuring trajectories")
+    parser.add_argument("--speed", type=int, help="time this many worlds instead")
     parser.add_argument("--json", help="also write the rows to this file")
     args = parser.parse_args()
-    rows = success_table(args.scripted) if args.scripted else trajectory_table(args)
+    rows = (success_table(args.scripted) if args.scripted else speed_table(args) if args.speed
+            else trajectory_table(args))
     if args.json:
         from frbench.io import atomic_write_text
 

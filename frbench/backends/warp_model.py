@@ -16,8 +16,8 @@ compiles.
 Buffer sizes. Warp allocates ``nconmax`` contacts per world (``naconmax`` = N · nconmax for all worlds
 together) and ``njmax`` constraint rows per world. A box touching a plane or a box makes at most 4 and 8
 contacts, a cylinder 4, a sphere 1; on a box terrain a geom may lie across two boxes. The sizes below are the
-sum of those bounds over the robot's collision geoms (``_CONTACTS_PER_GEOM``, doubled on box terrains), which
-is far above what a fallen robot makes (measured maxima in ``docs/gpu.md``), and ``njmax`` gives each contact
+sum of those bounds over the robot's collision geoms (``_CONTACTS_PER_GEOM``, doubled on box terrains), far
+above what a fallen robot makes (no run in ``docs/gpu.md`` overflowed), and ``njmax`` gives each contact
 its 3 rows (elliptic cone, condim 3) plus one row per joint limit. Warp reports an overflow in
 ``Data.overflow`` (`BUFFER_OVERFLOWS`); the backend flags the world (`frbench.backends.mujoco_warp_backend`).
 """
