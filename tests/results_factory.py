@@ -50,8 +50,17 @@ def make_results(
     salt: int = 0,
     success: SuccessFn | None = None,
     checkpoint: str | None = None,
+    unseen: bool | None = None,
 ) -> dict:
-    """A complete, self-consistent results object."""
+    """A complete, self-consistent results object. ``unseen`` (default: when the axes are the standard grid's) adds
+    protocol 1.2's unseen grid (`frbench.evaluation.grids`): the results then hold both grids' cells, as
+    ``frbench evaluate --grid standard,unseen`` writes them."""
+    standard = (tuple(robots), tuple(backends), tuple(terrains), tuple(levels), tuple(seeds)) == (
+        STANDARD_ROBOTS, STANDARD_BACKENDS, STANDARD_TERRAINS, STANDARD_LEVELS, STANDARD_SEEDS)
+    if unseen if unseen is not None else standard:
+        return _with_unseen_grid(make_results(robots=robots, backends=backends, terrains=terrains, levels=levels,
+                                              seeds=seeds, episodes=episodes, policy=policy, skill=skill, salt=salt,
+                                              success=success, checkpoint=checkpoint, unseen=False), standard)
     success = success or _default_success(skill, salt)
     cells, records = [], []
     for robot in robots:
@@ -129,6 +138,37 @@ def make_results(
         "summary": summary,
         "sim_to_sim": sim_to_sim,
     }
+
+
+def _with_unseen_grid(results: dict, named: bool = True) -> dict:
+    """``results`` extended by the unseen grid's quadruped cells (same policy); ``named``: ``results`` are the
+    standard grid's, so the config names both grids (else it only lists the robots, as a custom grid would)."""
+    from frbench.evaluation.grids import unseen_part
+
+    part = unseen_part()
+    config = results["config"]
+    extra = make_results(robots=part.robots, backends=part.backends, terrains=part.terrains, levels=part.levels,
+                         seeds=part.seeds, episodes=config["episodes"], policy=config["policy"],
+                         salt=hash_salt(results), unseen=False)
+    merged = dict(results)
+    for key in ("cells", "episodes", "summary", "sim_to_sim"):
+        merged[key] = results[key] + extra[key]
+    offset = len(results["robots"])
+    merged["robots"] = {**results["robots"], **{r: {**v, "urdf_sha256": f"{i + offset:02x}" * 32,
+                                                    "sim_urdf_sha256": f"{i + offset + 64:02x}" * 32}
+                                                for i, (r, v) in enumerate(extra["robots"].items())}}
+    merged["config"] = {**config, "robots": config["robots"] + list(part.robots),
+                        "terrains": config["terrains"], "levels": config["levels"]}
+    if named:
+        merged["config"]["grid"] = ["standard", "unseen"]
+        merged["config"]["not_scored"] = {r: "the policy does not drive this robot (unseen grid: scored n/a, not 0)"
+                                          for r in ("icub", "talos")}
+    return merged
+
+
+def hash_salt(results: dict) -> int:
+    """A salt for the unseen cells that differs between records made with different salts."""
+    return sum(c["successes"] * (i + 1) for i, c in enumerate(results["cells"][:50]))
 
 
 #: Episodes succeeding out of 4 per (backend, terrain, level) in :func:`small_results` (seed-independent).

@@ -33,12 +33,15 @@ def register(sub: argparse._SubParsersAction) -> None:
                    f"default {d.policy})")
     p.add_argument("--spec", default=None, help="a layout file (JSON, `frbench spec --json`) for an ONNX, TorchScript, "
                    "Stable-Baselines3 or Python policy (default: its sidecar <file>.json, else frbench's layout)")
-    p.add_argument("--robots", type=_list, default=d.robots, help="comma-separated robot names or URDF paths")
-    p.add_argument("--backends", type=_list, default=d.backends, help="mujoco,pybullet")
-    p.add_argument("--terrains", type=_list, default=d.terrains, help="terrain families (default: all seven)")
-    p.add_argument("--levels", type=_ints, default=d.levels, help="difficulty levels 1-10 (default 1,5,10)")
-    p.add_argument("--seeds", type=_ints, default=d.seeds, help="evaluation seeds (default 0,1)")
-    p.add_argument("--episodes", type=int, default=d.episodes, help="episodes per cell (default 8)")
+    p.add_argument("--grid", default=None, help="a named grid of the protocol instead of the axes below: standard "
+                   "(the five training-distribution quadrupeds, 840 cells), unseen (real quadrupeds no policy trains on, "
+                   "576 cells, + the humanoid set for a humanoid policy) or standard,unseen (docs/protocol.md)")
+    p.add_argument("--robots", type=_list, default=None, help="comma-separated robot names or URDF paths (default go2)")
+    p.add_argument("--backends", type=_list, default=None, help="mujoco,pybullet")
+    p.add_argument("--terrains", type=_list, default=None, help="terrain families (default: all seven)")
+    p.add_argument("--levels", type=_ints, default=None, help="difficulty levels 1-10 (default 1,5,10)")
+    p.add_argument("--seeds", type=_ints, default=None, help="evaluation seeds (default 0,1)")
+    p.add_argument("--episodes", type=int, default=None, help=f"episodes per cell (default {d.episodes})")
     p.add_argument("--noise", action="store_true", help="add sensor noise to the observations")
     p.add_argument("--jobs", type=int, default=0, help="worker processes (default: one per core)")
     p.add_argument("--executor", default=d.executor, help="local (a process pool, default) or ray (Ray tasks; "
@@ -65,12 +68,20 @@ def run(args) -> int:
 
     from frbench.policies.references import resolve_reference
 
-    request = EvaluationRequest(
-        policy=resolve_reference(args.policy, args.spec), robots=args.robots, backends=args.backends, terrains=args.terrains,
-        levels=args.levels, seeds=args.seeds, episodes=args.episodes, noise=args.noise, jobs=args.jobs,
-        executor=args.executor, address=args.address,
-    )
-    out = args.out or Path("results") / f"{Path(args.policy).stem or 'policy'}.json"
+    axes = ("robots", "backends", "terrains", "levels", "seeds", "episodes")
+    given = {name: getattr(args, name) for name in axes if getattr(args, name) is not None}
+    grid = []
+    if args.grid is not None:
+        from frbench.evaluation.grids import parse_grids
+
+        grid = parse_grids(args.grid)
+        if given:
+            raise FrbenchError(f"--grid {args.grid} fixes the robots, backends, terrains, levels, seeds and episodes: "
+                               f"drop --{', --'.join(given)}")
+    request = EvaluationRequest(policy=resolve_reference(args.policy, args.spec), noise=args.noise, jobs=args.jobs,
+                                executor=args.executor, address=args.address, grid=grid, **given)
+    default_stem = f"{Path(args.policy).stem or 'policy'}" + (f"-{'-'.join(grid)}" if grid else "")
+    out = args.out or Path("results") / f"{default_stem}.json"
     check_output_path(out)
     policy = validate(request)
     from frbench.robot_checks.check import checks_for_evaluation
@@ -80,8 +91,11 @@ def run(args) -> int:
         if not check["ok"]:
             print(f"frbench evaluate: warning: robot {name!r} fails `frbench robot check`: {'; '.join(check['problems'])}", file=sys.stderr)
     cells = request.cells()
+    for name, reason in request.not_scored.items():
+        print(f"frbench evaluate: robot {name!r} of the grid is not scored: {reason}", file=sys.stderr)
     print(
-        f"frbench evaluate: policy {policy.name!r}, {len(cells)} cells x {request.episodes} episodes "
+        f"frbench evaluate: policy {policy.name!r}{' on the ' + '+'.join(grid) + ' grid' if grid else ''}, "
+        f"{len(cells)} cells x {request.episodes} episodes "
         f"({', '.join(request.robots)} | {', '.join(request.backends)} | {len(request.terrains)} terrains | "
         f"levels {','.join(map(str, request.levels))} | seeds {','.join(map(str, request.seeds))})",
         file=sys.stderr,

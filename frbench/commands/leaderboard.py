@@ -95,7 +95,7 @@ def run_submit(args: argparse.Namespace) -> int:
     if record["track"] == "partial":
         from frbench.leaderboard.scores import main_track_shortfall
 
-        print(f"partial, not ranked on the main board: {main_track_shortfall(record['results']['cells'])}")
+        print(f"partial, not ranked on the main board: {main_track_shortfall(record['results']['cells'], record['results']['protocol_version'])}")
     if entry is not None:
         how = " (a checkpoint shipped in frbench: referred to by its sha256, not stored again)" if "shipped" in entry else ""
         print(f"{'would attach' if args.dry_run else 'attached'} policy file {policy_file_label(entry)} "

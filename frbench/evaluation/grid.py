@@ -47,14 +47,36 @@ class EvaluationRequest:
     jobs: int = 0
     executor: str = "local"
     address: str | None = None
+    #: Named grids (`frbench.evaluation.grids`: ``standard``, ``unseen``); empty: the product of the fields above.
+    grid: list[str] = field(default_factory=list)
+    #: Robots of the named grids the policy cannot drive: name -> why (scored "n/a"); set by `apply_grids`.
+    not_scored: dict[str, str] = field(default_factory=dict)
+    #: The named grids' cell keys (robot, backend, terrain, level, seed); set by `apply_grids`.
+    cell_keys: list[tuple] | None = None
 
     def cells(self) -> list[Cell]:
         """Every cell of the grid, in a fixed order."""
+        if self.cell_keys is not None:
+            return [Cell(*key, self.episodes) for key in self.cell_keys]
         return [
             Cell(robot, backend, terrain, level, seed, self.episodes)
             for robot in self.robots for backend in self.backends for terrain in self.terrains
             for level in self.levels for seed in self.seeds
         ]
+
+
+def apply_grids(request: EvaluationRequest, policy) -> None:
+    """Set the request's robots, axes, episodes and cells from its named grids for ``policy`` (the robots it
+    cannot drive go to ``not_scored``); nothing when it names none."""
+    if not request.grid:
+        return
+    from frbench.evaluation.grids import resolve_grids
+
+    resolved = resolve_grids(request.grid, lambda name: policy.supports(get_robot(name)))
+    axes = resolved.axes
+    request.robots, request.backends, request.terrains = list(axes.robots), list(axes.backends), list(axes.terrains)
+    request.levels, request.seeds, request.episodes = list(axes.levels), list(axes.seeds), axes.episodes
+    request.not_scored, request.cell_keys = dict(resolved.not_scored), list(resolved.keys)
 
 
 def validate(request: EvaluationRequest):
@@ -76,6 +98,7 @@ def validate(request: EvaluationRequest):
     if not request.seeds:
         raise FrbenchError("--seeds is empty: expected at least one seed")
     policy = load_policy(request.policy)
+    apply_grids(request, policy)
     for robot in request.robots:
         spec = get_robot(robot)
         if not policy.supports(spec):
@@ -84,7 +107,9 @@ def validate(request: EvaluationRequest):
 
 
 #: Request fields that say how the grid ran, not what it measured: left out of the results' config.
-RUN_ONLY_FIELDS = ("jobs", "executor", "address")
+RUN_ONLY_FIELDS = ("jobs", "executor", "address", "cell_keys")
+#: Fields recorded only when the request names grids (a custom grid's config stays as before 1.2).
+GRID_FIELDS = ("grid", "not_scored")
 
 
 def _worker_init() -> None:
@@ -144,7 +169,8 @@ def build_results(request: EvaluationRequest, policy, episodes: list[dict], code
     checkpoint = getattr(policy, "checkpoint", None)
     cells = aggregate_cells(episodes)
     summary = summarize(cells)
-    config = {k: v for k, v in request.__dict__.items() if k not in RUN_ONLY_FIELDS}
+    config = {k: v for k, v in request.__dict__.items()
+              if k not in RUN_ONLY_FIELDS and (request.grid or k not in GRID_FIELDS)}
     return {
         "schema_version": RESULTS_SCHEMA_VERSION,
         "protocol_version": PROTOCOL_VERSION,

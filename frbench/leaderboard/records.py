@@ -135,7 +135,7 @@ def submission_fields(
 
 def build_record(results: dict, submission: dict) -> dict:
     """A complete record for checked ``results`` (see :func:`~frbench.leaderboard.results.check_results`)."""
-    track = track_of(results["cells"])
+    track = track_of(results["cells"], results["protocol_version"])
     record = {
         "record_schema_version": RECORD_SCHEMA_VERSION,
         "id": record_id(results),
@@ -221,7 +221,7 @@ def check_record(record: Any, *, file_name: str | None = None) -> None:
     if attached is not None and results["policy"]["sha256"] not in (None, attached["sha256"]):
         raise ResultsError(f"policy_file.sha256: {attached['sha256']} is not the checkpoint the results were evaluated "
                            f"with (results.policy.sha256 {results['policy']['sha256']})")
-    track = track_of(results["cells"])
+    track = track_of(results["cells"], results["protocol_version"])
     if record["track"] != track:
         raise ResultsError(f"track: {record['track']!r} but its cells put it on the {track!r} track")
     fresh = record_scores(results["cells"], track)

@@ -30,7 +30,8 @@ import math
 from collections import defaultdict
 from typing import Any, Iterable
 
-from frbench.errors import ResultsError
+from frbench.errors import FrbenchError, ResultsError
+from frbench.evaluation.grids import expected_cell_keys
 from frbench.evaluation.intervals import wilson_interval
 from frbench.schemas import SchemaViolation, validate
 from frbench.tasks.protocol import KNOWN_PROTOCOL_VERSIONS, RESULTS_SCHEMA_VERSION
@@ -147,6 +148,13 @@ def _check_cells(results: dict) -> dict[tuple, int]:
             )
         if cell["diverged"] > cell["episodes"]:
             raise ResultsError(f"cells[{index}].diverged: {cell['diverged']} exceeds {cell['episodes']} episodes")
+    named = _named_grid_keys(config)
+    if named is not None:
+        for key in sorted(named - index_of.keys(), key=str)[:1]:
+            raise ResultsError(f"cells: no cell for {describe(key, CELL_KEY)}, which config.grid {config['grid']} holds")
+        for key in sorted(index_of.keys() - named, key=str)[:1]:
+            raise ResultsError(f"cells[{index_of[key]}]: {describe(key, CELL_KEY)} is not a cell of config.grid {config['grid']}")
+        return index_of
     expected_cells = len(config["robots"]) * len(config["backends"]) * len(config["terrains"]) * len(config["levels"]) * len(config["seeds"])
     if len(index_of) != expected_cells:
         for robot in config["robots"]:
@@ -158,6 +166,16 @@ def _check_cells(results: dict) -> dict[tuple, int]:
                             if key not in index_of:
                                 raise ResultsError(f"cells: no cell for {describe(key, CELL_KEY)}, which config lists")
     return index_of
+
+
+def _named_grid_keys(config: dict) -> set[tuple] | None:
+    """The cells of ``config.grid`` (None when it names no grid); an unknown grid name is a one-line error."""
+    if "grid" not in config:
+        return None
+    try:
+        return expected_cell_keys(config)
+    except FrbenchError as exc:
+        raise ResultsError(f"config.grid: {str(exc).removeprefix('--grid ')}") from None
 
 
 def _check_episodes(results: dict, cells: dict[tuple, int]) -> None:

@@ -53,33 +53,76 @@ def cell_key(cell: Mapping) -> tuple:
     return (cell["robot"], cell["backend"], cell["terrain"], cell["level"], cell["seed"])
 
 
-def main_track_shortfall(cells: Sequence[Mapping]) -> str | None:
+@lru_cache(maxsize=1)
+def unseen_grid() -> frozenset:
+    """The unseen grid's quadruped cells (protocol 1.2, `frbench.evaluation.grids`)."""
+    from frbench.evaluation.grids import unseen_part
+
+    return frozenset(unseen_part().keys())
+
+
+@lru_cache(maxsize=1)
+def unseen_humanoid_grid() -> frozenset:
+    """The unseen grid's humanoid cells (scored only for policies that drive humanoids)."""
+    from frbench.evaluation.grids import unseen_part
+
+    return frozenset(unseen_part(humanoids=True).keys())
+
+
+def needs_unseen_grid(protocol_version: str | None) -> bool:
+    """Whether a main-track record of this protocol version must hold the unseen grid (1.2 and later)."""
+    if protocol_version is None:
+        return False
+    major, _, minor = protocol_version.partition(".")
+    return (int(major), int(minor or 0)) >= (1, 2)
+
+
+def _grid_shortfall(episodes: Mapping[tuple, int], grid: frozenset, label: str) -> str | None:
+    missing = len(grid - episodes.keys())
+    if missing:
+        return f"{missing} of the {label} grid's {len(grid)} cells are missing"
+    short = sum(1 for key in grid if episodes[key] < STANDARD_EPISODES)
+    if short:
+        return f"{short} {label} cells have fewer than {STANDARD_EPISODES} episodes"
+    return None
+
+
+def main_track_shortfall(cells: Sequence[Mapping], protocol_version: str | None = None) -> str | None:
     """Why the cells are not a main-track record (``None`` when they are).
 
     Main means: every cell of the standard grid present, each with at least
     ``STANDARD_EPISODES`` episodes (the count that bounds the overall score's
-    95 % interval at +-2 points; ``frbench.tasks.protocol``).
+    95 % interval at +-2 points; ``frbench.tasks.protocol``); from protocol 1.2
+    on, the unseen grid's quadruped cells likewise (a 1.2 record without them is
+    partial).
     """
     episodes = {cell_key(c): c["episodes"] for c in cells}
-    missing = len(STANDARD_GRID - episodes.keys())
-    if missing:
-        return f"{missing} of the standard grid's {len(STANDARD_GRID)} cells are missing"
-    short = sum(1 for key in STANDARD_GRID if episodes[key] < STANDARD_EPISODES)
-    if short:
-        return f"{short} standard cells have fewer than {STANDARD_EPISODES} episodes"
-    return None
+    shortfall = _grid_shortfall(episodes, STANDARD_GRID, "standard")
+    if shortfall is None and needs_unseen_grid(protocol_version):
+        shortfall = _grid_shortfall(episodes, unseen_grid(), "unseen")
+    return shortfall
 
 
-def track_of(cells: Sequence[Mapping]) -> str:
-    """``main`` when the cells cover the whole standard grid with enough episodes per cell, else ``partial``."""
-    return "main" if main_track_shortfall(cells) is None else "partial"
+def track_of(cells: Sequence[Mapping], protocol_version: str | None = None) -> str:
+    """``main`` when the cells cover the whole standard grid (and, from 1.2 on, the unseen grid) with enough
+    episodes per cell, else ``partial``."""
+    return "main" if main_track_shortfall(cells, protocol_version) is None else "partial"
 
 
 def scored_cells(cells: Sequence[Mapping], track: str) -> list[Mapping]:
-    """The cells a record is scored on: the standard grid's for main records, all for partial ones."""
+    """The cells a record is scored on: the standard grid's for main records; for partial ones all cells but
+    the unseen grid's (scored apart, `unseen_cells`), or all if it has no others."""
     if track == "main":
         return [c for c in cells if cell_key(c) in STANDARD_GRID]
-    return list(cells)
+    unseen = unseen_grid() | unseen_humanoid_grid()
+    others = [c for c in cells if cell_key(c) not in unseen]
+    return others or list(cells)
+
+
+def unseen_cells(cells: Sequence[Mapping], humanoids: bool = False) -> list[Mapping]:
+    """The record's cells of the unseen grid (its quadrupeds, or its humanoid set)."""
+    grid = unseen_humanoid_grid() if humanoids else unseen_grid()
+    return [c for c in cells if cell_key(c) in grid]
 
 
 def groups_of(cells: Iterable[Mapping]) -> Groups:
@@ -135,10 +178,8 @@ def aggregate(groups: Groups, *, robot: str | None = None, backend: str | None =
     }
 
 
-def record_scores(cells: Sequence[Mapping], track: str) -> dict:
-    """The ``scores`` stored in a record."""
-    scored = scored_cells(cells, track)
-    full = aggregate(groups_of(scored))
+def _scores_of(cells: Sequence[Mapping]) -> dict:
+    full = aggregate(groups_of(cells))
     assert full is not None  # results always have cells
     return {
         "overall": full["overall"],
@@ -147,8 +188,24 @@ def record_scores(cells: Sequence[Mapping], track: str) -> dict:
         "per_robot": full["per_robot"],
         "sim_to_sim_gap": full["sim_to_sim_gap"],
         "cells": full["cells"],
-        "episodes": sum(c["episodes"] for c in scored),
+        "episodes": sum(c["episodes"] for c in cells),
     }
+
+
+def record_scores(cells: Sequence[Mapping], track: str) -> dict:
+    """The ``scores`` stored in a record: the standard (or, partial, the record's own) grid's; with the unseen
+    grid's cells also ``unseen`` (its quadrupeds) and ``unseen_humanoids`` (when the policy drives humanoids)
+    with the same fields, and ``generalisation_gap`` = overall − unseen overall. Records without unseen cells
+    (every record before protocol 1.2) keep exactly their former scores."""
+    scores = _scores_of(scored_cells(cells, track))
+    unseen = unseen_cells(cells)
+    if unseen and len(unseen) < len(cells):
+        scores["unseen"] = _scores_of(unseen)
+        scores["generalisation_gap"] = scores["overall"] - scores["unseen"]["overall"]
+        humanoids = unseen_cells(cells, humanoids=True)
+        if humanoids:
+            scores["unseen_humanoids"] = _scores_of(humanoids)
+    return scores
 
 
 def check_same_protocol(versions: Iterable[str]) -> str | None:

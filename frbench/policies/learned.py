@@ -63,6 +63,19 @@ def residual_targets(base: np.ndarray, action: np.ndarray, scale: float, control
     return base + gate[:, None] * scale * action
 
 
+def portable_actions(actions: np.ndarray) -> np.ndarray:
+    """Actions (N, J) computed in float64, rounded to float32 and returned as float64 (protocol 1.2).
+
+    A float32 forward pass depends on the processor: torch picks its ATen kernels by the CPU's vector
+    extensions (``ATEN_CPU_CAPABILITY``: default / AVX2 / AVX-512) and MKL or oneDNN block their sums by
+    the same, so the last bits of an action differ between machines, and over a chaotic 5 s episode a
+    last-bit difference can flip its outcome (docs/protocol.md, "Protocol 1.2"). In float64 the kernels
+    still differ, but only around 1e-16 relative; rounding to float32 (about 6e-8) maps both to the same
+    value unless the exact result lies within that distance of a float32 rounding boundary (about one
+    action in 10^8-10^9). The network's weights are float32 numbers, so float64 loses nothing of them."""
+    return np.asarray(actions, dtype=np.float64).astype(np.float32).astype(np.float64)
+
+
 class LearnedPolicy:
     """A trained recovery policy (proprioception only), optionally a residual over a base controller."""
 
@@ -108,6 +121,7 @@ class LearnedPolicy:
         except RuntimeError as exc:
             raise PolicyError(f"{path}: checkpoint weights do not fit the {self.method!r} actor ({str(exc)[:200]})") from None
         self.actor.eval()
+        self.actor.double()  # portable inference (protocol 1.2): see `portable_actions`
         self._torch, self._TensorDict = torch, TensorDict
 
         self.base_controller = None
@@ -155,10 +169,10 @@ class LearnedPolicy:
         torch, n = self._torch, len(o_t)
         groups = {"policy": o_t, "history": self.history.reshape(n, -1), "long_history": self.long_history.reshape(n, -1)}
         groups.update({g: np.zeros((n, w)) for g, w in self.ignored_widths.items()})
-        td = self._TensorDict({g: torch.as_tensor(groups[g], dtype=torch.float32) for g in self.groups},
+        td = self._TensorDict({g: torch.as_tensor(groups[g], dtype=torch.float64) for g in self.groups},
                               batch_size=[n])
         with torch.inference_mode():
-            action = self.actor(td).numpy().astype(np.float64)
+            action = portable_actions(self.actor(td).numpy())
         self.action = np.clip(action, -10.0, 10.0)
 
 

@@ -30,6 +30,7 @@ from frbench.robots.infer import sidecar_path, spec_from_path
 from frbench.robots.paths import config_dir
 from frbench.robots.sidecar import NAME_PATTERN
 from frbench.robots.sim_urdf import sim_robot_file
+from frbench.robots.unseen import UNSEEN_ROBOTS, unseen_spec
 from frbench.robots.spec import RobotSpec
 
 ENTRY_POINT_GROUP = "frbench.robots"
@@ -76,6 +77,8 @@ def unavailable_reason(entry: dict) -> str | None:
 def _spec_by_name(name: str) -> RobotSpec:
     if name in BUILTIN_ROBOTS:
         return BUILTIN_ROBOTS[name]()
+    if name in UNSEEN_ROBOTS:  # protocol 1.2's unseen robots: installed files by a portable name
+        return unseen_spec(name)
     users = user_robots()
     if name in users:
         entry = users[name]
@@ -136,7 +139,7 @@ def check_name(name: str) -> None:
     """Refuse a registry name that is unsafe or taken by a built-in robot."""
     if not NAME_PATTERN.fullmatch(name):
         raise RobotFileError(f"--name {name!r}: expected 1-64 letters, digits, '_' or '-', starting with a letter or digit")
-    if name in BUILTIN_ROBOTS:
+    if name in BUILTIN_ROBOTS or name in UNSEEN_ROBOTS:
         raise RobotFileError(f"robot name {name!r} is a built-in robot; choose another name")
 
 

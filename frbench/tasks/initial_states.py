@@ -26,7 +26,7 @@ from frbench.backends.self_collision import self_intersects
 from frbench.robots.sim_urdf import sim_robot_file
 from frbench.robots.spec import RobotSpec
 from frbench.robots.urdf_tree import parse_urdf
-from frbench.tasks.protocol import PROTOCOL_VERSION
+from frbench.tasks.protocol import STARTS_KEY_VERSION
 from frbench.tasks.start_geometry import StartGeometry
 from frbench.terrains import support_height
 
@@ -82,7 +82,7 @@ class RecordedStarts:
 
 
 def episode_rng(robot: str, family: str, level: int, seed: int, episode: int, attempt: int = 0,
-                protocol_version: str = PROTOCOL_VERSION) -> np.random.Generator:
+                protocol_version: str = STARTS_KEY_VERSION) -> np.random.Generator:
     """The generator of one episode's start: a pure function of the protocol version, the cell and the
     draw attempt (0 for the first draw; `frbench.tasks.start_screening` redraws with 1, 2, ...)."""
     key = f"{protocol_version}|{robot}|{family}|{int(level)}|{int(seed)}|{int(episode)}"
@@ -179,7 +179,7 @@ def draw_start(spec: RobotSpec, terrain, rng: np.random.Generator) -> tuple[np.n
 
 
 def draw_starts(spec: RobotSpec, terrain, family: str, level: int, seed: int, episodes,
-                protocol_version: str = PROTOCOL_VERSION) -> FallenStarts:
+                protocol_version: str = STARTS_KEY_VERSION) -> FallenStarts:
     """The starts of ``episodes`` (indices) in one (robot, terrain, level, seed) cell (an earlier
     ``protocol_version`` re-draws that version's first draws, e.g. to compare success rules on them)."""
     episodes = list(episodes)

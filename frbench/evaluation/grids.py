@@ -1,0 +1,147 @@
+"""The protocol's named evaluation grids: ``standard`` and ``unseen`` (protocol 1.2, docs/protocol.md).
+
+A grid is one or more *parts*, each a product robots x backends x terrains x
+levels x seeds with a fixed episode count:
+
+* ``standard``: the five quadrupeds training samples around x both backends x the
+  seven families x levels 1, 5, 10 x seeds 0-3 x 3 episodes (840 cells);
+* ``unseen``: the real quadrupeds of `frbench.robots.unseen` x both backends x
+  flat, rough, slopes, stairs x levels 1, 5 x seeds 0-3 x 3 episodes (576
+  cells), plus the same product over the unseen humanoids for a policy that
+  drives humanoids. A policy that does not gets no humanoid cells: its
+  humanoid score is "n/a" (`not_scored`), never 0.
+
+``frbench evaluate --grid standard,unseen`` runs the union of the parts; the
+results' ``config.grid`` names the grids, ``config.not_scored`` the robots a
+grid has that the policy cannot drive, and `expected_cell_keys` is the set of
+cells such results must hold (`frbench.leaderboard.results` checks it).
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+from typing import Mapping, Sequence
+
+from frbench.errors import FrbenchError
+from frbench.tasks import protocol
+
+
+@dataclass(frozen=True)
+class GridPart:
+    """A product of cells (robots x backends x terrains x levels x seeds), ``episodes`` per cell."""
+
+    robots: tuple[str, ...]
+    backends: tuple[str, ...]
+    terrains: tuple[str, ...]
+    levels: tuple[int, ...]
+    seeds: tuple[int, ...]
+    episodes: int
+
+    def keys(self, robots: Sequence[str] | None = None) -> list[tuple]:
+        """Cell keys (robot, backend, terrain, level, seed), robots limited to ``robots`` if given."""
+        chosen = [r for r in self.robots if robots is None or r in robots]
+        return list(itertools.product(chosen, self.backends, self.terrains, self.levels, self.seeds))
+
+
+def standard_part() -> GridPart:
+    """The standard grid (`frbench.tasks.protocol` STANDARD_*)."""
+    p = protocol
+    return GridPart(p.STANDARD_ROBOTS, p.STANDARD_BACKENDS, p.STANDARD_TERRAINS, p.STANDARD_LEVELS, p.STANDARD_SEEDS,
+                    p.STANDARD_EPISODES)
+
+
+def unseen_part(humanoids: bool = False) -> GridPart:
+    """The unseen grid's quadrupeds, or (``humanoids``) its humanoid set."""
+    p = protocol
+    robots = p.unseen_humanoids() if humanoids else p.unseen_quadrupeds()
+    return GridPart(robots, p.STANDARD_BACKENDS, p.UNSEEN_TERRAINS, p.UNSEEN_LEVELS, p.UNSEEN_SEEDS, p.UNSEEN_EPISODES)
+
+
+def grid_parts(name: str) -> tuple[GridPart, ...]:
+    """The parts of a named grid (the unseen grid's humanoid set is its second part)."""
+    if name == "standard":
+        return (standard_part(),)
+    if name == "unseen":
+        return (unseen_part(), unseen_part(humanoids=True))
+    raise FrbenchError(f"--grid {name!r}: unknown grid; known: {', '.join(GRID_NAMES)}")
+
+
+#: The named grids, in the order results list them.
+GRID_NAMES = ("standard", "unseen")
+
+
+def parse_grids(text: str) -> list[str]:
+    """``standard``, ``unseen`` or ``standard,unseen`` -> the names in canonical order (one-line error otherwise)."""
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    if not names:
+        raise FrbenchError("--grid is empty: expected standard, unseen or standard,unseen")
+    for name in names:
+        grid_parts(name)
+    return [n for n in GRID_NAMES if n in names]
+
+
+@dataclass(frozen=True)
+class ResolvedGrid:
+    """What a set of named grids means for one policy: its robots, axes, cells and the robots it cannot drive."""
+
+    names: tuple[str, ...]
+    #: The union of the parts' axes (its product is more than ``keys`` when the parts differ).
+    axes: GridPart
+    keys: tuple[tuple, ...]
+    not_scored: Mapping[str, str]
+
+
+def _union(values) -> tuple:
+    return tuple(dict.fromkeys(values))
+
+
+def resolve_grids(names: Sequence[str], supports) -> ResolvedGrid:
+    """The cells of ``names`` for a policy: ``supports(robot_name) -> bool`` says whether it drives a robot. A
+    part's robots the policy cannot drive go to ``not_scored`` (name -> reason); a grid whose every quadruped
+    is undrivable is an error."""
+    robots, not_scored, keys, parts = [], {}, [], []
+    for name in names:
+        for index, part in enumerate(grid_parts(name)):
+            drivable = [r for r in part.robots if supports(r)]
+            for robot in part.robots:
+                if robot not in drivable:
+                    not_scored[robot] = f"the policy does not drive this robot ({name} grid: scored n/a, not 0)"
+            if not drivable and index == 0:
+                raise FrbenchError(f"--grid {name}: the policy drives none of its robots ({', '.join(part.robots)})")
+            if drivable:
+                parts.append(part)
+                robots += drivable
+                keys += part.keys(drivable)
+    episodes = {p.episodes for p in parts}
+    if len(episodes) != 1:  # pragma: no cover - every named grid has 3 episodes per cell
+        raise FrbenchError(f"--grid {','.join(names)}: parts with different episode counts {sorted(episodes)}")
+    axes = GridPart(_union(robots), _union(b for p in parts for b in p.backends),
+                    _union(t for p in parts for t in p.terrains), tuple(sorted({lv for p in parts for lv in p.levels})),
+                    tuple(sorted({s for p in parts for s in p.seeds})), episodes.pop())
+    return ResolvedGrid(tuple(names), axes, tuple(dict.fromkeys(keys)), dict(not_scored))
+
+
+def expected_cell_keys(config: Mapping) -> set[tuple] | None:
+    """The cells results of ``config`` must hold when it names grids (None: a plain product of its axes).
+    A grid part contributes its cells for the robots ``config.robots`` lists (a humanoid set that was not
+    scored contributes none)."""
+    names = config.get("grid")
+    if not names:
+        return None
+    keys: set[tuple] = set()
+    for name in names:
+        for part in grid_parts(name):
+            keys.update(part.keys(config["robots"]))
+    return keys
+
+
+def grid_of_robot(robot: str) -> str | None:
+    """``standard``, ``unseen`` or ``unseen-humanoid`` for a robot of a named grid, else None."""
+    if robot in protocol.STANDARD_ROBOTS:
+        return "standard"
+    if robot in protocol.unseen_quadrupeds():
+        return "unseen"
+    if robot in protocol.unseen_humanoids():
+        return "unseen-humanoid"
+    return None
