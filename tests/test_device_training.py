@@ -20,7 +20,7 @@ TINY = ["--envs", "4", "--terrains", "flat", "--set", "num_morphologies=2", "--s
         "--set", "settle_steps=5"]
 
 
-def test_a_tiny_device_run_gives_a_checkpoint_that_evaluate_scores(tmp_path):
+def test_a_tiny_device_run_resumes_and_gives_a_checkpoint_that_evaluate_scores(tmp_path):
     run = tmp_path / "run"
     assert main(["train", "--backend", "mujoco-warp", "--device", "cpu", "--steps", "192", "--checkpoint-every", "1",
                  "--out", str(run), *TINY]) == 0
@@ -28,6 +28,9 @@ def test_a_tiny_device_run_gives_a_checkpoint_that_evaluate_scores(tmp_path):
     assert config["env"]["backend"] == "mujoco-warp" and config["env"]["num_envs"] == 4
     curve = (run / "curve.csv").read_text().splitlines()
     assert len(curve) == 3 and curve[2].startswith("2,192,")  # two iterations of 4 envs x 24 steps
+    # --resume continues it on the device (its backend from config.json, --device as given), curriculum restored
+    assert main(["train", "--resume", str(run), "--steps", "288", "--device", "cpu", "--checkpoint-every", "1"]) == 0
+    assert (run / "curve.csv").read_text().splitlines()[-1].startswith("3,288,")
     out = tmp_path / "eval.json"
     assert main(["evaluate", "--policy", str(run), "--robots", "go2", "--terrains", "flat", "--levels", "1",
                  "--seeds", "0", "--episodes", "1", "--backends", "mujoco", "--out", str(out)]) == 0

@@ -184,11 +184,11 @@ def run(args) -> int:
     weights = reward_weight_changes(args.motion_penalties, args.reward_weight)
     if args.backend is not None and args.backend not in training_backend_names():
         raise unknown_name("backend", args.backend, training_backend_names())
-    if (args.device or args.bundle) and args.backend != "mujoco-warp":
+    if (args.device or args.bundle) and args.backend != "mujoco-warp" and not args.resume:
         raise FrbenchError("--device and --bundle are settings of --backend mujoco-warp")
     if args.bundle is not None and not args.bundle.is_dir():
         raise FrbenchError(f"--bundle {args.bundle}: no such folder")
-    device = {"device": args.device, "bundle": args.bundle} if args.backend == "mujoco-warp" else {}
+    device = {"device": args.device, "bundle": args.bundle} if (args.device or args.bundle) else {}
     ranges = morphology_range_changes(args.morphology_range)
     if args.entropy_coef is not None and not args.entropy_coef >= 0:
         raise FrbenchError(f"--entropy-coef {args.entropy_coef}: expected a coefficient >= 0")

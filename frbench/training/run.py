@@ -173,6 +173,9 @@ class TrainingRun:
         seed = distributed.rank_seed(env_cfg.seed, ranks.rank)  # each rank its own environments and draws
         torch.manual_seed(seed)
         env_cfg = env_cfg if seed == env_cfg.seed else dataclasses.replace(env_cfg, seed=seed)
+        if (device or bundle) and env_cfg.backend != "mujoco-warp":
+            raise FrbenchError(f"--device and --bundle are settings of --backend mujoco-warp; this run trains in "
+                               f"{env_cfg.backend}")
         if env_cfg.backend == "mujoco-warp":  # the trainer that stays on the device
             from frbench.training.device_env import device_training_env
 
