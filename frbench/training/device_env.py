@@ -172,7 +172,8 @@ class DeviceTrainingEnv(VecEnv):
         self.episode_length_buf = torch.zeros(n, dtype=torch.long, device=device)
         self.rng = np.random.default_rng(cfg.seed)  # the run saves it; draws here come from `generator`
         self.generator = torch.Generator(device=device)
-        self.generator.manual_seed(cfg.seed if seed is None else seed)
+        self.seed = cfg.seed if seed is None else int(seed)
+        self.generator.manual_seed(self.seed)
         self.env_steps = 0
         self.last_episode_stats: dict[str, float] = {}
         self.reward_means = TermMeans()
@@ -307,6 +308,9 @@ class DeviceTrainingEnv(VecEnv):
     def _new_episodes(self) -> None:
         """Every environment starts from a bank entry of its (tile, variant) cell; histories refilled."""
         n = self.num_envs
+        # each episode's draws from its own seed (the run's seed and the episode's index by env steps): a resumed
+        # run, whose env steps the run restores, continues the sequence instead of repeating its start
+        self.generator.manual_seed(self.seed * 1_000_003 + self.env_steps // (n * self.max_episode_length))
         self.tile = self.tile_of_cell[self.curriculum.family, self.curriculum.level]
         cell = self.tile * self.num_variants + self.variant
         count = self.cell_count[cell]
