@@ -33,6 +33,8 @@ held actions, no base controller (the bundle refuses such configs).
 
 from __future__ import annotations
 
+import contextlib
+
 import numpy as np
 import torch
 from rsl_rl.env import VecEnv
@@ -245,6 +247,7 @@ class DeviceTrainingEnv(VecEnv):
         for name, values in per_world.items():
             array = getattr(self.warp_model, name)
             array.assign(np.ascontiguousarray(values, dtype=np.float32 if values.dtype == np.float64 else values.dtype))
+        wp.synchronize_device(self.wp_device)  # the model and data in place before torch touches them
         d = self.warp_data
         self.qpos, self.qvel, self.ctrl = wp.to_torch(d.qpos), wp.to_torch(d.qvel), wp.to_torch(d.ctrl)
         self.qfrc_actuator, self.cfrc_ext = wp.to_torch(d.qfrc_actuator), wp.to_torch(d.cfrc_ext)
@@ -255,20 +258,36 @@ class DeviceTrainingEnv(VecEnv):
             self._overflow_mask |= int(getattr(mjw.OverflowType, name))
         self._graph = None
 
+    @contextlib.contextmanager
+    def _scope(self):
+        """Warp on the environment's device; on a GPU its stream ordered with torch's current stream both ways
+        (stream waits, no host synchronisation): torch's writes (``ctrl``, reset states) happen before Warp's
+        kernels read them, Warp's results before torch reads them. Warp keeps its own stream, on which the CUDA
+        graph is captured (a legacy default stream cannot be captured)."""
+        wp = self._wp
+        with wp.ScopedDevice(self.wp_device):
+            if not self.wp_device.startswith("cuda"):
+                yield
+                return
+            torch_stream, warp_stream = wp.stream_from_torch(torch.cuda.current_stream()), wp.get_stream(self.wp_device)
+            warp_stream.wait_stream(torch_stream)
+            yield
+            torch_stream.wait_stream(warp_stream)
+
     def advance(self) -> None:
         """One control period of every world with the ``ctrl`` held, then the kinematics and centre-of-mass stage on
         the new state (``xpos``, ``xmat``, ``subtree_com`` current, as the CPU backends' readings are; the step
-        itself computes them before integrating). On a GPU one CUDA graph, captured on first use; nothing crosses
-        to the host."""
+        itself computes them before integrating). On a GPU one CUDA graph, captured on first use, launched on
+        torch's stream; nothing crosses to the host."""
         wp = self._wp
-        if self._graph is None and self.wp_device.startswith("cuda"):
-            with wp.ScopedDevice(self.wp_device), wp.ScopedCapture() as capture:
-                self._period()
-            self._graph = capture.graph
-        if self._graph is not None:
-            wp.capture_launch(self._graph)
-            return
-        with wp.ScopedDevice(self.wp_device):
+        with self._scope():
+            if self._graph is None and self.wp_device.startswith("cuda"):
+                with wp.ScopedCapture() as capture:
+                    self._period()
+                self._graph = capture.graph
+            if self._graph is not None:
+                wp.capture_launch(self._graph)
+                return
             self._period()
 
     def _period(self) -> None:
@@ -279,7 +298,7 @@ class DeviceTrainingEnv(VecEnv):
         mjw.com_pos(m, d)
 
     def _forward(self) -> None:
-        with self._wp.ScopedDevice(self.wp_device):
+        with self._scope():
             self._mjw.forward(self.warp_model, self.warp_data)
 
     # ------------------------------------------------------------------ starts and curriculum
@@ -316,7 +335,7 @@ class DeviceTrainingEnv(VecEnv):
         count = self.cell_count[cell]
         pick = (torch.rand(n, device=self.device, generator=self.generator) * count).long().clamp(max=count - 1)
         entry = self.cell_start[cell] + pick.clamp(min=0)
-        with self._wp.ScopedDevice(self.wp_device):  # MuJoCo's reset (solver warm start, time, forces cleared)
+        with self._scope():  # MuJoCo's reset (solver warm start, time, forces cleared)
             self._mjw.reset_data(self.warp_model, self.warp_data)
         self.qpos.copy_(self.bank_qpos[entry])
         self.qvel.copy_(self.bank_qvel[entry])
