@@ -5,6 +5,8 @@ actuation, contacts and per-world parameters; divergence and buffer overflows fl
 from __future__ import annotations
 
 import logging
+import re
+import sys
 
 import numpy as np
 import pytest
@@ -72,6 +74,14 @@ def _run(backend, state: RobotState, targets: list[np.ndarray], params: PhysicsP
 
 def test_mujoco_warp_is_a_registered_simulator():
     assert "mujoco-warp" in BACKENDS and "mujoco-warp" in training_backend_names()
+
+
+def test_a_missing_gpu_extra_is_one_error_with_the_install_command(go2, monkeypatch):
+    from frbench.errors import FrbenchError
+
+    monkeypatch.setitem(sys.modules, "mujoco_warp", None)  # what an installation without the extra sees
+    with pytest.raises(FrbenchError, match=re.escape("install it with pip install 'frbench[gpu]'")):
+        make_backend("mujoco-warp", go2, 1)
 
 
 def test_warp_follows_mujoco_c_over_five_control_steps_from_settled_starts(go2, settled, warp):

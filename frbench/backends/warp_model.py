@@ -61,8 +61,16 @@ def _stderr_silenced():
 
 
 def import_warp():
-    """``(warp, mujoco_warp)``, imported and initialised quietly (module docstring)."""
-    import warp as wp
+    """``(warp, mujoco_warp)``, imported and initialised quietly (module docstring); a `FrbenchError` with the
+    install command when the ``gpu`` extra is missing."""
+    try:
+        import mujoco_warp  # noqa: F401  (imported below once Warp is initialised; here: is it installed?)
+        import warp as wp
+    except ImportError:
+        from frbench.errors import FrbenchError
+
+        raise FrbenchError("backend mujoco-warp: MuJoCo Warp is not installed; install it with "
+                           "pip install 'frbench[gpu]'") from None
     from warp._src import context
 
     if context.runtime is None:  # not initialised yet
