@@ -17,15 +17,13 @@ Per-world parameters are model fields with a leading world dimension (Warp's bat
   ``Batch.set_const`` does;
 * with morphology variants (``variants``): every field in which the compiled variants differ
   (`frbench.backends.mujoco_backend.variant_fields`: ``body_pos``, ``body_mass``, ``body_inertia``,
-  ``geom_size``, ``geom_pos``, ``geom_aabb``, …). Fields that Warp has no per-world form of, and why that is
-  harmless: ``dof_length`` (used by Warp only for sleeping islands, which frbench's models do not enable),
-  ``body_sameframe``, ``bvh_aabb`` and ``dof_M0`` (not in Warp's model; it recomputes frames and the mass
-  matrix from the per-world fields). A field outside these that differs raises a ValueError.
+  ``geom_size``, ``geom_pos``, ``geom_aabb``, …). The fields Warp has no per-world form of, and why that is
+  harmless, are `frbench.backends.warp_model.NOT_IN_WARP`; any other field that differs raises a ValueError.
 
 Buffers and overflow: contacts and constraint rows per world are sized for the robot and terrain
 (`frbench.backends.warp_model.buffer_sizes`). After every control period the backend reads Warp's
-``Data.overflow``; a world with a buffer overflow (`BUFFER_OVERFLOWS`: constraint rows, contacts, broad phase,
-…) computed its physics without some constraints, so it is flagged ``diverged`` (as a simulator error is), its
+``Data.overflow``; a world with a buffer overflow (`BUFFER_OVERFLOW_NAMES`: constraint rows, contacts, broad
+phase, …) computed its physics without some constraints, so it is flagged ``diverged`` (as a simulator error is), its
 bits kept in ``overflow`` (N,) and the overflow logged once on the ``frbench.warp`` logger with the sizes.
 Reaching the solver's iteration limit is not an overflow (MuJoCo C stops there too).
 
@@ -44,8 +42,15 @@ import logging
 
 import numpy as np
 
-from frbench.backends.base import CONTROL_DT, Contacts, PhysicsParams, RobotState, check_base_force, check_targets
-from frbench.backends.base import divergence_mask
+from frbench.backends.base import (
+    CONTROL_DT,
+    Contacts,
+    PhysicsParams,
+    RobotState,
+    check_base_force,
+    check_targets,
+    divergence_mask,
+)
 from frbench.backends.mujoco_backend import (
     ModelLayout,
     contacts_of,
@@ -57,7 +62,16 @@ from frbench.backends.mujoco_backend import (
     write_state,
 )
 from frbench.backends.mujoco_model import build_model, joint_addresses
-from frbench.backends.warp_model import batchable_fields, buffer_sizes, import_warp, put_batched_model, warp_device
+from frbench.backends.warp_model import (
+    BUFFER_OVERFLOW_NAMES,
+    NOT_IN_WARP,
+    batchable_fields,
+    buffer_overflow_mask,
+    buffer_sizes,
+    import_warp,
+    put_batched_model,
+    warp_device,
+)
 from frbench.robots.spec import RobotSpec
 from frbench.terrains import make_terrain
 
@@ -66,20 +80,8 @@ PARAM_FIELDS = ("actuator_gainprm", "actuator_biasprm", "actuator_forcerange", "
                 "body_subtreemass", "body_invweight0", "dof_invweight0", "actuator_acc0")
 #: Height [m] above the terrain at which a diverged world waits at rest for its reset.
 PARK_HEIGHT = 100.0
-#: Warp's ``OverflowType`` bits that mean a buffer was too small (the physics of that step lacks constraints);
-#: the solver's ITERATIONS / LS_ITERATIONS bits are not among them.
-_BUFFER_OVERFLOW_NAMES = ("NEFC", "NJMAX_NNZ", "BROADPHASE", "NARROWPHASE", "CCD", "HFIELD", "NVMAX", "EPA_HORIZON")
 
 _log = logging.getLogger("frbench.warp")
-
-
-def buffer_overflow_mask() -> int:
-    """The OR of Warp's buffer-overflow bits (`_BUFFER_OVERFLOW_NAMES`)."""
-    _, mjw = import_warp()
-    mask = 0
-    for name in _BUFFER_OVERFLOW_NAMES:
-        mask |= int(getattr(mjw.OverflowType, name))
-    return mask
 
 
 class MujocoWarpBackend(ModelLayout):
@@ -110,8 +112,8 @@ class MujocoWarpBackend(ModelLayout):
         if variants is not None:
             batchable = batchable_fields()
             per_world = variant_fields(self.model, variant_models(self.terrain, variants), np.asarray(variants[1]),
-                                       lambda name: name in batchable or name in _NOT_IN_WARP)
-            per_world = {k: v for k, v in per_world.items() if k not in _NOT_IN_WARP}
+                                       lambda name: name in batchable or name in NOT_IN_WARP)
+            per_world = {k: v for k, v in per_world.items() if k not in NOT_IN_WARP}
         default_sizes = buffer_sizes(self.model)
         self.nconmax = int(nconmax or default_sizes[0])
         self.njmax = int(njmax or default_sizes[1])
@@ -157,7 +159,8 @@ class MujocoWarpBackend(ModelLayout):
         gain, bias, force_range = (self._read(m.actuator_gainprm), self._read(m.actuator_biasprm),
                                    self._read(m.actuator_forcerange))
         write_actuator_params(gain, bias, force_range, params, self._limits)
-        for array, values in ((m.actuator_gainprm, gain), (m.actuator_biasprm, bias), (m.actuator_forcerange, force_range)):
+        for array, values in ((m.actuator_gainprm, gain), (m.actuator_biasprm, bias),
+                              (m.actuator_forcerange, force_range)):
             array.assign(values.astype(np.float32))
         self.params = params
         if self.has_variants:
@@ -206,8 +209,8 @@ class MujocoWarpBackend(ModelLayout):
         self._com = None
         self._run(mjw.forward, self.warp_model, d)
         # the other worlds keep the readings of their last physics step (the protocol's contacts and torques)
-        cfrc, actuator = self._read(d.cfrc_ext), self._read(d.qfrc_actuator)
-        cfrc, actuator = np.where(mask[:, None, None], cfrc, kept_cfrc), np.where(mask[:, None], actuator, kept_actuator)
+        cfrc = np.where(mask[:, None, None], self._read(d.cfrc_ext), kept_cfrc)
+        actuator = np.where(mask[:, None], self._read(d.qfrc_actuator), kept_actuator)
         d.cfrc_ext.assign(cfrc.astype(np.float32))
         d.qfrc_actuator.assign(actuator.astype(np.float32))
         self.diverged[ids] = divergence_mask(state) | state_divergence(qpos[ids], qvel[ids], self._qadr, self._dadr,
@@ -274,7 +277,7 @@ class MujocoWarpBackend(ModelLayout):
         self._overflow_logged = True
         _, mjw = self._wp, self._mjw
         bits = int(np.bitwise_or.reduce(overflow))
-        names = [name for name in _BUFFER_OVERFLOW_NAMES if bits & int(getattr(mjw.OverflowType, name))]
+        names = [name for name in BUFFER_OVERFLOW_NAMES if bits & int(getattr(mjw.OverflowType, name))]
         _log.warning("MuJoCo Warp: %s overflow in %d of %d worlds (nconmax %d, njmax %d per world); those worlds "
                      "are flagged diverged", "/".join(names), int(np.count_nonzero(overflow)), self.num_envs,
                      self.nconmax, self.njmax)
@@ -333,6 +336,3 @@ class MujocoWarpBackend(ModelLayout):
         self.warp_data = self.warp_model = None
         self._graph = None
 
-
-#: MuJoCo model fields with no per-world form in Warp in which variants may differ (module docstring: harmless).
-_NOT_IN_WARP = frozenset({"body_sameframe", "bvh_aabb", "dof_M0", "dof_length"})

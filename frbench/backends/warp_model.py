@@ -19,7 +19,9 @@ contacts, a cylinder 4, a sphere 1; on a box terrain a geom may lie across two b
 sum of those bounds over the robot's collision geoms (``_CONTACTS_PER_GEOM``, doubled on box terrains), far
 above what a fallen robot makes (no run in ``docs/gpu.md`` overflowed), and ``njmax`` gives each contact
 its 3 rows (elliptic cone, condim 3) plus one row per joint limit. Warp reports an overflow in
-``Data.overflow`` (`BUFFER_OVERFLOWS`); the backend flags the world (`frbench.backends.mujoco_warp_backend`).
+``Data.overflow`` (`BUFFER_OVERFLOW_NAMES`, `buffer_overflow_mask`); the backend flags the world
+(`frbench.backends.mujoco_warp_backend`). This module imports nothing heavy of frbench's (no terrain or robot
+code), so a device trainer with only mujoco, mujoco-warp and torch can use it.
 """
 
 from __future__ import annotations
@@ -30,6 +32,14 @@ import os
 
 import numpy as np
 
+#: MuJoCo model fields in which morphology variants may differ although Warp has no per-world form of them,
+#: harmlessly: ``dof_length`` (Warp reads it only for sleeping islands, which frbench's models do not enable);
+#: ``body_sameframe``, ``bvh_aabb``, ``dof_M0`` (not in Warp's model: it recomputes frames, bounds and the mass
+#: matrix from the per-world fields).
+NOT_IN_WARP = frozenset({"body_sameframe", "bvh_aabb", "dof_M0", "dof_length"})
+#: Warp's ``OverflowType`` bits that mean a buffer was too small (the physics of that step lacks constraints);
+#: the solver's ITERATIONS / LS_ITERATIONS bits are not among them (MuJoCo C stops at its limits too).
+BUFFER_OVERFLOW_NAMES = ("NEFC", "NJMAX_NNZ", "BROADPHASE", "NARROWPHASE", "CCD", "HFIELD", "NVMAX", "EPA_HORIZON")
 #: Contacts a robot geom of each MuJoCo type can make with one terrain geom (box-box 8, box-plane 4, ...).
 _CONTACTS_PER_GEOM = {"box": 8, "cylinder": 4, "capsule": 2, "ellipsoid": 4, "sphere": 1, "mesh": 8}
 #: Contacts per world are rounded up to a multiple of this (Warp's tiles prefer round sizes).
@@ -125,3 +135,12 @@ def put_batched_model(model, num_worlds: int, fields):
     every world starting from ``model``'s value."""
     _, mjw = import_warp()
     return mjw.put_model(model, batch_sizes={name: int(num_worlds) for name in fields})
+
+
+def buffer_overflow_mask() -> int:
+    """The OR of Warp's buffer-overflow bits (`BUFFER_OVERFLOW_NAMES`)."""
+    _, mjw = import_warp()
+    mask = 0
+    for name in BUFFER_OVERFLOW_NAMES:
+        mask |= int(getattr(mjw.OverflowType, name))
+    return mask
