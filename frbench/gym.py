@@ -9,6 +9,9 @@ registers nothing):
   vectorization_mode="vector_entry_point", ...)`` — a batched
   `FallRecoveryVectorEnv` on one backend batch.
 
+``backend``: any simulator of `frbench.backends.BACKENDS` (``mujoco``, ``pybullet``, ``mujoco-warp``: the
+``gpu`` extra, docs/gpu.md) or the split batch ``mujoco+pybullet``.
+
 Both envs are shells over the core environment (`frbench.tasks.core_env.CoreEnv`,
 which the training env shares): they turn its arrays into Gymnasium's spaces.
 The episodes are the benchmark's (`frbench.tasks.recovery.RecoveryTask`: the
