@@ -6,7 +6,11 @@ its first 8+ hex digits) in the leaderboard folder. The record is checked like
 ``--seed`` are re-run with the record's policy and compared episode by episode
 (`frbench.leaderboard.verify`). Exit 0: every sampled episode reproduced; 1:
 a mismatch (the differences are listed), a replaced or missing policy file, or
-a record of another protocol version; 2: bad input. ``--save`` adds a passed
+a record of another protocol version; 2: bad input. A foreign policy (ONNX,
+TorchScript, Stable-Baselines3) whose episodes differ on this processor gets a
+statistical check of its successes instead: exit 1 only when they are
+inconsistent with the record (p < 0.001), else exit 0 saying that the record is
+consistent but not verified. ``--save`` adds a passed
 verification to the record, which the board and page then mark.
 """
 
@@ -51,7 +55,7 @@ def _locate(text: str, root_option: str | None) -> tuple[Path, Path]:
 def run(args: argparse.Namespace) -> int:
     from frbench.leaderboard.board import add_verification
     from frbench.leaderboard.records import load_record
-    from frbench.leaderboard.verify import RELATIVE_TOLERANCE, entry_of, verify
+    from frbench.leaderboard.verify import RELATIVE_TOLERANCE, STATISTICAL_ALPHA, entry_of, verify
 
     path, root = _locate(args.record, args.root)
     record = load_record(path)
@@ -72,9 +76,19 @@ def run(args: argparse.Namespace) -> int:
         print(f"sample: {len(report.sample)} of {total} episodes (seed {args.seed}) in {report.cells} cells, compared {how}")
     for failure in report.failures:
         print(f"mismatch: {failure}")
+    check = report.statistical
+    if check is not None:
+        print(f"statistical check: {check.successes} of {check.episodes} re-run episodes succeeded; the record's cells "
+              f"predict {check.expected:.2f} (two-sided p = {check.p_value:.3g}; inconsistent below {STATISTICAL_ALPHA:g})")
     if not report.ok:
         print(f"frbench verify: record {short} does NOT verify ({len(report.failures)} problem(s) above)")
         return 1
+    if check is not None:
+        print(f"frbench verify: record {short} is consistent with its re-run episodes but NOT verified: a foreign "
+              f"policy's episodes differ by processor, and {check.episodes} episodes cannot confirm a record")
+        if args.save:
+            print("frbench verify: --save records only verifications; nothing written")
+        return 0
     print(f"frbench verify: record {short} verified: {len(report.sample)} of {len(report.sample)} sampled episodes reproduced")
     if args.save:
         add_verification(root, path, entry_of(report))
