@@ -168,6 +168,7 @@ def test_a_diverged_world_is_flagged_held_and_leaves_the_others_alone(go2, settl
     want = _run(make_backend("mujoco", go2, N), settled, targets)
     got = _run(warp, bad, targets)
     assert warp.diverged.tolist() == [False, True, False, False]
+    assert np.isnan(got.base_linvel[1, 0]) and np.allclose(got.base_pos[1], settled.base_pos[1])  # as placed
     keep = [0, 2, 3]
     assert np.abs(got.base_pos[keep] - want.base_pos[keep]).max() < POSITION_TOLERANCE
     assert np.isfinite(warp.contacts().link_force).all()

@@ -215,6 +215,7 @@ class MujocoWarpBackend(ModelLayout):
         d.qfrc_actuator.assign(actuator.astype(np.float32))
         self.diverged[ids] = divergence_mask(state) | state_divergence(qpos[ids], qvel[ids], self._qadr, self._dadr,
                                                                        self._whole_state)
+        self._held_qpos[ids], self._held_qvel[ids] = qpos[ids], qvel[ids]  # what a world diverged at reset reads
 
     def advance(self) -> None:
         """One control period (``substeps`` ``mjw.step`` calls) of every world with the ``ctrl`` the device holds,
