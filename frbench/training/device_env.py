@@ -40,26 +40,24 @@ import torch
 from rsl_rl.env import VecEnv
 from tensordict import TensorDict
 
-from frbench.backends.base import RobotState
+from frbench.backends.base import CONTACT_FORCE_THRESHOLD, RobotState
 from frbench.tasks.observations import flatten, proprioception
 from frbench.tasks.success import StepSignals, SuccessTracker
 from frbench.training.device_bundle import check_device_config
+from frbench.training.height_raster import HALF_SIZE, RESOLUTION
 from frbench.training.observation_groups import privileged_groups
 from frbench.training.reward_inputs import RewardInputs
 from frbench.training.rewards import compute_rewards, term_arguments
+from frbench.training.step_reward import HEAD_OFFSET_M, upper_body_joints
 
 #: Largest |qpos|, |qvel| entry of a healthy world (`frbench.backends.base.DIVERGENCE_LIMIT`).
 DIVERGENCE_LIMIT = 1e3
-#: Net link force [N] above which a link counts as touching (`frbench.backends.base.CONTACT_FORCE_THRESHOLD`).
-CONTACT_FORCE_THRESHOLD = None  # read from frbench.backends.base at construction
 #: MuJoCo model fields Warp's model does not hold; variants may differ in them
 #: (`frbench.backends.mujoco_warp_backend._NOT_IN_WARP`, repeated here: that module imports PyBullet's terrain
 #: code, which the GPU machine lacks).
 _NOT_IN_WARP = frozenset({"body_sameframe", "bvh_aabb", "dof_M0", "dof_length"})
 #: Warp's overflow bits that mean a buffer was too small (`frbench.backends.mujoco_warp_backend`).
 _BUFFER_OVERFLOWS = ("NEFC", "NJMAX_NNZ", "BROADPHASE", "NARROWPHASE", "CCD", "HFIELD", "NVMAX", "EPA_HORIZON")
-#: Raster geometry (`frbench.training.height_raster`).
-RESOLUTION, HALF_SIZE = None, None
 
 
 class DeviceSpec:
@@ -154,22 +152,15 @@ class DeviceTrainingEnv(VecEnv):
     (Warp's device and the tensors'); ``seed``: torch's generator for the bank draws and curriculum redraws."""
 
     def __init__(self, bundle, device: str = "cpu", seed: int | None = None):
-        from frbench.backends import base
-        from frbench.training import height_raster
-
-        global CONTACT_FORCE_THRESHOLD, RESOLUTION, HALF_SIZE
-        CONTACT_FORCE_THRESHOLD = base.CONTACT_FORCE_THRESHOLD
-        RESOLUTION, HALF_SIZE = height_raster.RESOLUTION, height_raster.HALF_SIZE
         cfg = bundle.config
         self.cfg_obj = cfg
         self.cfg = {"env": {k: (str(v) if k == "reward" else v) for k, v in cfg.to_dict().items()}}
         check_device_config(cfg)
         self.device = device = "cuda:0" if device == "cuda" else device
-        self.torch_device = torch.device(device)
         self.num_envs = n = cfg.num_envs
         a = bundle.arrays
         self.spec = DeviceSpec(bundle.meta["robot"])
-        j = self.num_actions = self.spec.n_joints
+        self.num_actions = self.spec.n_joints
         self.max_episode_length = cfg.episode_steps
         self.episode_length_buf = torch.zeros(n, dtype=torch.long, device=device)
         self.rng = np.random.default_rng(cfg.seed)  # the run saves it; draws here come from `generator`
@@ -195,7 +186,7 @@ class DeviceTrainingEnv(VecEnv):
         self.nominal_height = t("nominal_height")
         self.qadr, self.dadr = t("qadr", torch.long), t("dadr", torch.long)
         self.link_body, self.membership = t("link_body", torch.long), t("membership")
-        self.feet, self.non_foot, self.knees = t("feet", torch.long), t("non_foot", torch.long), t("knees", torch.long)
+        self.feet, self.knees = t("feet", torch.long), t("knees", torch.long)
         self.root_body = int(bundle.meta["root_body"])
         self.heights, self.centres = t("heights"), t("centres")
         self.raster_n = int(a["heights"].shape[1])
@@ -205,8 +196,7 @@ class DeviceTrainingEnv(VecEnv):
                                            self.generator)
         self._bank(a)
         self.reward_config = bundle.reward
-        self.upper_body = torch.tensor([not any(w in name for w in ("hip", "knee", "ankle"))
-                                        for name in self.spec.joint_names], device=device)
+        self.upper_body = torch.as_tensor(upper_body_joints(self.spec), device=device)
         self.head = bundle.meta.get("head")
         self._arguments = None
         self._new_episodes()
@@ -463,8 +453,6 @@ class DeviceTrainingEnv(VecEnv):
             action_prev2=self.action_prev2, upper_body=self.upper_body)
         if self.head is not None:
             body = int(self.head["body"])
-            from frbench.training.step_reward import HEAD_OFFSET_M
-
             head = self.xpos[:, body] + self.xmat[:, body].reshape(n, 3, 3)[:, :, 2] * HEAD_OFFSET_M
             inputs.head_height = head[:, 2] - self._ground(head[:, :1], head[:, 1:2])[:, 0]
             inputs.nominal_head_height = float(self.head["standing_height"])
