@@ -140,3 +140,41 @@ def test_the_gpu_run_trains_the_symmetry_recipe_without_demo_starts_and_refused_
     # the symmetry preset's demo starts: a one-line error naming the field, exit status 2, before any work
     assert main(["train", "--backend", "mujoco-warp", "--device", "cpu", "--preset", "symmetry", "--steps", "96",
                  "--out", "/nonexistent/never-written", *TINY]) == 2
+
+
+def test_each_episode_redraws_the_physics_on_the_device_as_the_cpu_writes_it():
+    from frbench.backends.base import MOTOR_FRICTION_VELOCITY, PhysicsParams
+    from frbench.backends.mujoco_backend import write_actuator_params
+    from frbench.training.device_env import write_actuators
+
+    rng = np.random.default_rng(0)
+    n, j, nu = 5, 12, 24
+    params = PhysicsParams(kp=rng.uniform(20, 80, (n, j)), kd=rng.uniform(0.6, 2, (n, j)),
+                           motor_strength=rng.uniform(0.9, 1.1, (n, j)), friction=np.ones(n), payload=np.zeros(n),
+                           motor_friction=rng.uniform(0.2, 1.25, (n, j)))
+    limits = rng.uniform(20, 40, j)
+    fields = [rng.normal(size=shape) for shape in ((n, nu, 10), (n, nu, 10), (n, nu, 2))]
+    expected = [f.copy() for f in fields]
+    write_actuator_params(*expected, params, limits)
+    got = [torch.as_tensor(f) for f in fields]
+    write_actuators(*got, *(torch.as_tensor(a) for a in (params.kp, params.kd, params.motor_strength,
+                                                         params.motor_friction, limits)), MOTOR_FRICTION_VELOCITY)
+    for e, g in zip(expected, got):
+        np.testing.assert_allclose(g.numpy(), e, rtol=1e-12, atol=0)
+
+    cfg = TrainEnvConfig(num_envs=4, num_morphologies=2, families=("flat",), episode_steps=2, settle_steps=5, seed=4)
+    bundle = build_bundle(cfg, starts_per_cell=1, log=lambda *_: None)
+    env = DeviceTrainingEnv(bundle, "cpu", seed=0)
+    try:
+        first = env.kp.clone()
+        np.testing.assert_array_equal(first.numpy(), bundle.arrays["kp"].astype(np.float32))  # the CPU trainer's draw
+        for _ in range(2):  # one episode
+            env.step(torch.zeros(4, env.num_actions))
+        kp, gain = env.kp, env._gain[:, :env.num_actions, 0]
+        assert not torch.equal(kp, first)
+        assert float(kp.min()) >= 20.0 and float(kp.max()) <= 80.0
+        assert torch.equal(kp, kp[:, :1].expand(-1, 12))  # one Kp per environment for sampled morphologies
+        torch.testing.assert_close(gain, (env.motor_strength * kp).float())
+        assert float(env.motor_strength.min()) >= 0.9 and float(env.motor_strength.max()) <= 1.1
+    finally:
+        env.close()

@@ -10,14 +10,15 @@ and seed give the same robots, families and levels). A saved bundle needs neithe
 packages: a GPU machine with only mujoco, mujoco-warp and torch loads it.
 
 Folder layout: ``model.mjb`` (the ``MjModel`` of the grid world and the first robot), ``arrays.npz`` (below),
-``meta.json`` (the `TrainEnvConfig`, the resolved reward table, the robot's joint names, limits and kind, sizes).
+``meta.json`` (the `TrainEnvConfig`, the resolved reward table, the robot's joint names, limits and kind, sizes,
+and with randomisation the ranges each episode's physics is drawn from).
 
 Arrays (N environments, K robot variants, T terrain tiles, M bank entries, J joints):
 
 * ``variant/<field>`` (K, …): each MuJoCo model field in which the variants differ (`variant_fields`), and
   ``assignment`` (N,) each environment's variant; every world's model gets its variant's value;
-* ``gainprm``, ``biasprm`` (N, nu, 10), ``forcerange`` (N, nu, 2): the actuators of each environment's physics
-  (gains, motor strength, motor friction; one draw of the CPU trainer's randomisation, fixed for the run);
+* ``gainprm``, ``biasprm`` (N, nu, 10), ``forcerange`` (N, nu, 2): the actuators of each environment's first
+  episode (gains, motor strength, motor friction; the CPU trainer's draw; later episodes redraw on the device);
   ``kp``, ``kd``, ``motor_strength``, ``motor_friction`` (N, J), ``friction``, ``payload`` (N,): the same physics
   (the critic reads them);
 * ``masses`` (N, G) [kg], ``nominal_height`` (N,) [m], ``family``, ``level`` (N,): the estimator's mass labels,
@@ -169,6 +170,18 @@ def build_bundle(cfg, starts_per_cell: int = STARTS_PER_CELL, log=print) -> Devi
                       "contact_groups": [g.name for g in spec.contact_groups]},
             "buffers": dict(zip(("nconmax", "njmax"), buffer_sizes(model))),
             "floor": float(raster.floor), "root_body": int(model.body(link_names[0]).id)}
+    if cfg.randomize:  # the CPU trainer's per-episode draw (`TrainingRobots.episode_params`), redrawn on the device
+        from frbench.backends.base import MOTOR_FRICTION_VELOCITY
+        from frbench.training.population import NAMED_ROBOT_GAIN_FACTORS
+        from frbench.training.randomization import CONTROL_RANGES
+
+        ranges = {**CONTROL_RANGES, **cfg.gain_ranges}
+        meta["physics"] = {
+            "named": bool(cfg.robot), "kp": ranges.get("kp"), "kd": ranges.get("kd"),
+            "gain_factors": NAMED_ROBOT_GAIN_FACTORS, "motor_strength": ranges.get("motor_strength"),
+            "motor_friction": CONTROL_RANGES["motor_friction"], "nominal_kp": list(map(float, spec.kp)),
+            "nominal_kd": list(map(float, spec.kd)), "torque_limits": list(map(float, spec.torque_limits)),
+            "motor_friction_velocity": MOTOR_FRICTION_VELOCITY}
     if robots.head is not None:
         from frbench.training.step_reward import HEAD_FRAME
 

@@ -25,9 +25,10 @@ world, the batch's robots, the terrain rasters and a bank of settled fallen star
 Logging happens once per episode end (the statistics) and once per iteration (the reward-term means the run
 reads); ``extras["log"]`` carries nothing per step.
 
-Differences from the CPU trainer, by design of this first version: each environment's physics (gains, motor
-strength, motor friction) is one draw of the CPU trainer's randomisation fixed for the run; starts come from the
-bank (settled under nominal gains) instead of a fresh settle per episode; no demo, rise or assist starts, no
+Each episode's physics (gains, motor strength, motor friction) is drawn on the device as the CPU trainer draws
+it (the first episode's is the CPU trainer's own draw, from the bundle), written into the worlds' actuator
+fields (`write_actuators`). Differences from the CPU trainer, by design of this first version: starts come from
+the bank (settled under nominal gains) instead of a fresh settle per episode; no demo, rise or assist starts, no
 held actions, no base controller (the bundle refuses such configs).
 """
 
@@ -198,7 +199,16 @@ class DeviceTrainingEnv(VecEnv):
         self.reward_config = bundle.reward
         self.upper_body = torch.as_tensor(upper_body_joints(self.spec), device=device)
         self.head = bundle.meta.get("head")
+        self.physics = bundle.meta.get("physics")  # the per-episode draw's ranges (None: nominal physics)
+        if self.physics is not None:
+            self._nominal_kp = torch.tensor(self.physics["nominal_kp"], device=device)
+            self._nominal_kd = torch.tensor(self.physics["nominal_kd"], device=device)
+            self._torque_limits = torch.tensor(self.physics["torque_limits"], device=device)
+            wp, m = self._wp, self.warp_model
+            self._gain, self._bias = wp.to_torch(m.actuator_gainprm), wp.to_torch(m.actuator_biasprm)
+            self._force_range = wp.to_torch(m.actuator_forcerange)
         self._arguments = None
+        self.episodes_started = 0
         self._new_episodes()
 
     # ------------------------------------------------------------------ the worlds
@@ -314,12 +324,37 @@ class DeviceTrainingEnv(VecEnv):
         self.variant = torch.as_tensor(np.asarray(a["assignment"]), device=dev)
         self.num_variants = k
 
+    def _draw_physics(self) -> None:
+        """Each environment's physics for the next episode, drawn on the device as the CPU trainer draws it
+        (`TrainingRobots.episode_params`: one Kp and one Kd per environment from the training's range, or the named
+        robot's gains times one factor; motor strength and motor friction per joint; friction and payload the
+        environment's own), written into the worlds' actuator fields."""
+        p, n, j = self.physics, self.num_envs, self.num_actions
+
+        def uniform(bounds, shape):
+            low, high = bounds
+            return low + (high - low) * torch.rand(shape, device=self.device, generator=self.generator)
+
+        if p["named"]:
+            kp = self._nominal_kp * uniform(p["gain_factors"], (n, 1))
+            kd = self._nominal_kd * uniform(p["gain_factors"], (n, 1))
+        else:
+            kp = uniform(p["kp"], (n, 1)).expand(n, j) if p["kp"] else self._nominal_kp.expand(n, j)
+            kd = uniform(p["kd"], (n, 1)).expand(n, j) if p["kd"] else self._nominal_kd.expand(n, j)
+        strength = uniform(p["motor_strength"], (n, j)) if p["motor_strength"] else torch.ones_like(kp)
+        self.kp, self.kd, self.motor_strength = kp.contiguous(), kd.contiguous(), strength
+        write_actuators(self._gain, self._bias, self._force_range, kp, kd, strength,
+                        uniform(p["motor_friction"], (n, j)), self._torque_limits, p["motor_friction_velocity"])
+
     def _new_episodes(self) -> None:
         """Every environment starts from a bank entry of its (tile, variant) cell; histories refilled."""
         n = self.num_envs
         # each episode's draws from its own seed (the run's seed and the episode's index by env steps): a resumed
         # run, whose env steps the run restores, continues the sequence instead of repeating its start
         self.generator.manual_seed(self.seed * 1_000_003 + self.env_steps // (n * self.max_episode_length))
+        if self.physics is not None and self.episodes_started:  # the first runs the bundle's (the CPU trainer's draw)
+            self._draw_physics()
+        self.episodes_started += 1
         self.tile = self.tile_of_cell[self.curriculum.family, self.curriculum.level]
         cell = self.tile * self.num_variants + self.variant
         count = self.cell_count[cell]
@@ -516,3 +551,20 @@ def device_training_env(cfg, device: str | None = None, bundle_dir=None, log=pri
             raise FrbenchError(f"{bundle_dir}/meta.json: config field {field} is {built.get(field)!r}, the run's "
                                f"{wanted.get(field)!r}; build the bundle with the run's flags")
     return DeviceTrainingEnv(bundle, device)
+
+
+def write_actuators(gain, bias, force_range, kp, kd, strength, motor_friction, limits, friction_velocity: float) -> None:
+    """The actuator fields of N worlds in place, torch tensors on the device: ``gain`` (N, nu, 10)
+    ``actuator_gainprm``, ``bias`` (N, nu, 10) ``actuator_biasprm``, ``force_range`` (N, nu, 2) from kp, kd,
+    strength and motor friction (N, J) [N·m/rad, N·m·s/rad, -, N·m], the torque ``limits`` (J,) [N·m]:
+    `frbench.backends.mujoco_backend.write_actuator_params`'s formula (rows 0 … J−1 the PD actuators, J … 2J−1
+    the motor friction; tests/test_device_training.py checks the two give the same fields)."""
+    j = kp.shape[1]
+    gain[:, :j, 0] = strength * kp
+    bias[:, :j, 1] = -strength * kp
+    bias[:, :j, 2] = -strength * kd
+    force_range[:, :j, 0] = -strength * limits
+    force_range[:, :j, 1] = strength * limits
+    bias[:, j:, 2] = -motor_friction / friction_velocity
+    force_range[:, j:, 0] = -motor_friction
+    force_range[:, j:, 1] = motor_friction
