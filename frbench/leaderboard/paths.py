@@ -10,7 +10,7 @@ The leaderboard folder is, in order of precedence:
 4. otherwise ``./leaderboard`` in the current working directory (a regular,
    non-editable install: run frbench from a clone of the repository).
 
-Layout: ``records/<id>.json`` (one file per submission), ``schema/`` (copies of
+Layout: ``records/<id>.json.gz`` (one gzip JSON file per submission), ``schema/`` (copies of
 the record and results JSON Schemas), ``README.md`` and ``index.html``
 (generated from the records).
 """
