@@ -111,18 +111,22 @@ def measure(bundle, n: int, device: str, steps: int, iterations: int, method: st
             train_cfg = estimator_sized_for(make_train_cfg(method), env.env_masses.shape[1],
                                             len(env.spec.contact_groups), env.env_masses[0])
             runner = distributed.runner_class()(env, json.loads(json.dumps(train_cfg)), log_dir=None, device=env.device)
-            rollout = _Timer(device)
-            env.step = rollout.wrap(env.step)
             runner.learn(1)  # warm-up iteration (graphs, allocator)
-            rollout.total = 0.0
             _sync(device)
             start = time.perf_counter()
-            runner.learn(iterations)
+            runner.learn(iterations)  # the rate, nothing synchronised inside
             _sync(device)
             total = time.perf_counter() - start
+            rollout = _Timer(device)  # the split: one more iteration with the environment's steps timed
+            env.step = rollout.wrap(env.step)
+            _sync(device)
+            start = time.perf_counter()
+            runner.learn(1)
+            _sync(device)
+            split = time.perf_counter() - start
             env_steps = n * train_cfg["num_steps_per_env"] * iterations
             out.update(train_env_steps_per_s=round(env_steps / total, 1),
-                       share_ppo_update=round(1 - rollout.total / total, 3))
+                       share_ppo_update=round(1 - rollout.total / split, 3))
         return out
     finally:
         env.close()
