@@ -435,10 +435,11 @@ class DeviceTrainingEnv(VecEnv):
         o_t[:, -self.num_actions:] = self.action
         return o_t
 
-    def get_observations(self) -> TensorDict:
+    def get_observations(self, o_t: torch.Tensor | None = None) -> TensorDict:
         """The CPU trainer's groups: ``policy``, ``history``, ``privileged``, ``mass``, ``contact``, ``velocity``,
-        ``extrinsics`` (float32, on the device), NaN and dead worlds' rows zero."""
-        o_t = self._policy_observation()
+        ``extrinsics`` (float32, on the device), NaN and dead worlds' rows zero; ``o_t``: the policy observation
+        of the current state when the caller has it already."""
+        o_t = self._policy_observation() if o_t is None else o_t
         s = self.state
         groups = {"policy": o_t, "history": self.history.reshape(self.num_envs, -1)}
         groups.update(privileged_groups(o_t, self._scan(), self.masses, self.kp, self.kd, self._com_xy(),
@@ -508,7 +509,7 @@ class DeviceTrainingEnv(VecEnv):
             self.last_episode_stats = {k: float(v) for k, v in stats.items()}  # once per episode
             log.update({f"/episode/{k}": v for k, v in stats.items()})
             self._new_episodes()
-        obs = self.get_observations()
+        obs = self.get_observations(None if done else o_t)  # after an episode end: the new episodes' o_t
         dones = torch.full((n,), bool(done), device=self.device)
         return obs, reward, dones, {"time_outs": dones.clone(), "log": log}
 
