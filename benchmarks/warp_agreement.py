@@ -173,13 +173,13 @@ def mcnemar_p(only_first: int, only_second: int) -> float:
     return min(1.0, 2 * sum(comb(n, i) for i in range(k + 1)) / 2 ** n)
 
 
-def success_table(path: str) -> list[dict]:
-    """Successes per (robot, terrain, level) and simulator in a results file, pooled over seeds (module
-    docstring), and the episodes paired by seed and index: how many ended the same way and McNemar's p of the
-    difference; printed as a table."""
+def success_table(paths: str) -> list[dict]:
+    """Successes per (robot, terrain, level) and simulator in results files (``paths``, comma-separated), pooled
+    over seeds (module docstring), and the episodes paired by seed and index: how many ended the same way and
+    McNemar's p of the difference; printed as a table."""
     from frbench.evaluation.intervals import wilson_interval
 
-    episodes = json.loads(open(path).read())["episodes"]
+    episodes = [e for path in paths.split(",") for e in json.loads(open(path).read())["episodes"]]
     outcome = {(e["robot"], e["terrain"], int(e["level"]), e["backend"], int(e["seed"]), int(e["episode"])):
                bool(e["success"]) for e in episodes}
     groups = sorted({key[:3] for key in outcome})
@@ -212,7 +212,8 @@ def main() -> None:
     parser.add_argument("--levels", default="1,5")
     parser.add_argument("--starts", type=int, default=16, help="settled starts per cell")
     parser.add_argument("--seconds", type=float, default=max(TIMES), help="trajectory length [s]")
-    parser.add_argument("--scripted", help="summarise this results file instead of measuring trajectories")
+    parser.add_argument("--scripted", help="summarise these results files (comma-separated) instead of measuring "
+                                           "trajectories")
     parser.add_argument("--speed", type=int, help="time this many worlds instead")
     parser.add_argument("--json", help="also write the rows to this file")
     args = parser.parse_args()
