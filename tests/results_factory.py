@@ -60,7 +60,7 @@ def make_results(
     if unseen if unseen is not None else standard:
         return _with_unseen_grid(make_results(robots=robots, backends=backends, terrains=terrains, levels=levels,
                                               seeds=seeds, episodes=episodes, policy=policy, skill=skill, salt=salt,
-                                              success=success, checkpoint=checkpoint, unseen=False), standard)
+                                              success=success, checkpoint=checkpoint, unseen=False), standard, skill)
     success = success or _default_success(skill, salt)
     cells, records = [], []
     for robot in robots:
@@ -140,7 +140,7 @@ def make_results(
     }
 
 
-def _with_unseen_grid(results: dict, named: bool = True) -> dict:
+def _with_unseen_grid(results: dict, named: bool = True, skill: float = 0.8) -> dict:
     """``results`` extended by the unseen grid's quadruped cells (same policy); ``named``: ``results`` are the
     standard grid's, so the config names both grids (else it only lists the robots, as a custom grid would)."""
     from frbench.evaluation.grids import unseen_part
@@ -149,7 +149,7 @@ def _with_unseen_grid(results: dict, named: bool = True) -> dict:
     config = results["config"]
     extra = make_results(robots=part.robots, backends=part.backends, terrains=part.terrains, levels=part.levels,
                          seeds=part.seeds, episodes=config["episodes"], policy=config["policy"],
-                         salt=hash_salt(results), unseen=False)
+                         skill=skill, salt=hash_salt(results), unseen=False)
     merged = dict(results)
     for key in ("cells", "episodes", "summary", "sim_to_sim"):
         merged[key] = results[key] + extra[key]

@@ -107,8 +107,11 @@ def test_results_name_their_grid_and_a_1_2_record_needs_the_unseen_grid_to_be_ma
     record = build_record(both, submission_fields(both, name="x", description="", submitter="a", link=None,
                                                    submitted="2026-01-01T00:00:00Z"))
     assert record["track"] == "main" and record["scores"]["unseen"]["cells"] == 576
+    matched = [c["success_rate"] for c in both["cells"] if c["robot"] in protocol.STANDARD_ROBOTS
+               and c["terrain"] in protocol.UNSEEN_TERRAINS and c["level"] in protocol.UNSEEN_LEVELS]
+    assert len(matched) == 5 * 2 * 4 * 2 * 4
     assert record["scores"]["generalisation_gap"] == pytest.approx(
-        record["scores"]["overall"] - record["scores"]["unseen"]["overall"])
+        sum(matched) / len(matched) - record["scores"]["unseen"]["overall"])
     standard_only = make_results(episodes=3, skill=0.5, salt=2, unseen=False)
     assert main_track_shortfall(standard_only["cells"], "1.2") == "576 of the unseen grid's 576 cells are missing"
     assert main_track_shortfall(standard_only["cells"], "1.1") is None  # 1.1 asked for the standard grid only
@@ -145,3 +148,33 @@ def test_evaluate_grid_unseen_writes_the_grid_into_the_results(tmp_path, capsys,
     assert list(results["config"]["not_scored"]) == ["icub"] and "robot 'icub' of the grid is not scored" in captured.err
     assert [(c["robot"], c["episodes"]) for c in results["cells"]] == [("a1", 2)]
     assert results["robots"]["a1"]["source"] == "example-robot-data: a1_description/urdf/a1.urdf"
+
+
+def test_the_board_shows_standard_and_unseen_with_the_gap_and_ranks_by_unseen(tmp_path):
+    from frbench.leaderboard import board as lb
+    from frbench.leaderboard.records import load_records
+    from frbench.leaderboard.render import board, page_data
+    from results_factory import empty_board_copy, write_results
+
+    root = empty_board_copy(Path(__file__).resolve().parents[1] / "leaderboard", tmp_path / "leaderboard")
+    strong = make_results(episodes=3, skill=0.9, salt=1)
+    weak_unseen = make_results(episodes=3, skill=0.6, salt=2)
+    lb.submit(write_results(tmp_path / "a.json", strong), root, name="strong")
+    lb.submit(write_results(tmp_path / "b.json", weak_unseen), root, name="weaker")
+    lb.submit(write_results(tmp_path / "c.json", make_results(episodes=3, skill=0.99, salt=3, unseen=False)), root,
+              name="standard-only")
+    data = board(load_records(root))
+    assert [r["name"] for r in data["main"]] == ["strong", "weaker"]
+    assert [r["name"] for r in data["partial"]] == ["standard-only"]  # 1.2 without the unseen grid
+    ranking = data["unseen_ranking"]
+    assert [r["name"] for r in ranking] == ["strong", "weaker"] and ranking[0]["humanoids"] is None
+    for row in data["main"]:
+        g = row["generalisation"]
+        assert g["unseen"][1] < g["unseen"][0] < g["unseen"][2]
+        assert g["gap"][0] == pytest.approx(g["matched"][0] - g["unseen"][0])
+    readme = (root / "README.md").read_text()
+    assert "### Ranked by unseen success (protocol 1.2)" in readme and "| Unseen | Matched − unseen | Humanoids |" in readme
+    assert readme.count("| n/a |") >= 4  # the humanoid column of both tables, both records
+    entries = {e["name"]: e for e in page_data(load_records(root))["records"]}
+    assert entries["strong"]["generalisation"]["unseen"] == ranking[0]["unseen"]
+    assert entries["standard-only"]["generalisation"] is None

@@ -101,6 +101,7 @@ PAGE_SCRIPT = r"""
   }
   function fmt(x) { return (x === null || x === undefined) ? "\u2013" : x.toFixed(3); }
   function fmtIv(x, iv) { return (x === null || x === undefined || !iv) ? fmt(x) : fmt(x) + " (" + fmt(iv[0]) + "\u2013" + fmt(iv[1]) + ")"; }
+  var PROCESSOR_BOUND = "on the verifying machine's processor only: this learned policy ran float32 inference, whose last bits depend on the CPU's vector kernels (protocol 1.2 makes them portable)";
   function signed(x) { return (x < 0 ? "\u2212" : "+") + Math.abs(x).toFixed(3); }
   // Intervals of one record for the current filters: precomputed for no filter and for each single filter.
   function intervals(rec) {
@@ -200,12 +201,26 @@ PAGE_SCRIPT = r"""
     cols.push({key: "gap", label: "Gap", title: "Signed sim-to-sim gap MuJoCo \u2212 PyBullet with its 95 % interval", num: true, dir: "asc",
                get: function (x) { return x.iv && x.iv.signed_gap ? x.iv.signed_gap[0] : null; },
                show: function (x) { var g = x.iv && x.iv.signed_gap; return g ? signed(g[0]) + " (" + signed(g[1]) + ".." + signed(g[2]) + ")" : "\u2013"; }});
+    cols.push({key: "unseen", label: "Unseen", title: "Mean success on the unseen grid (real quadrupeds no policy trains on; protocol 1.2) with its 95 % interval; sort by it for the ranking by unseen success",
+               num: true, score: true, dir: "desc",
+               get: function (x) { var g = x.r.generalisation; return g ? g.unseen[0] : null; },
+               iv: function (x) { var g = x.r.generalisation; return g ? [g.unseen[1], g.unseen[2]] : null; }});
+    cols.push({key: "matched", label: "Matched std", title: "Mean success of the standard grid's cells on the unseen grid's families and levels, with its 95 % interval",
+               num: true, score: true, dir: "desc",
+               get: function (x) { var g = x.r.generalisation; return g ? g.matched[0] : null; },
+               iv: function (x) { var g = x.r.generalisation; return g ? [g.matched[1], g.matched[2]] : null; }});
+    cols.push({key: "gengap", label: "Matched \u2212 unseen", title: "Matched standard success minus unseen success with its 95 % interval: the loss on bodies never trained on, terrain held equal", num: true, dir: "asc",
+               get: function (x) { var g = x.r.generalisation; return g ? g.gap[0] : null; },
+               show: function (x) { var g = x.r.generalisation; return g ? signed(g.gap[0]) + " (" + signed(g.gap[1]) + ".." + signed(g.gap[2]) + ")" : "\u2013"; }});
+    cols.push({key: "humanoids", label: "Humanoids", title: "Mean success on the unseen humanoid set (Talos, iCub); n/a: the policy does not drive humanoids", num: true, dir: "desc",
+               get: function (x) { var g = x.r.generalisation; return g && g.humanoids ? g.humanoids[0] : null; },
+               show: function (x) { var g = x.r.generalisation; return g ? (g.humanoids ? g.humanoids[0].toFixed(3) + " (" + g.humanoids[1].toFixed(3) + "-" + g.humanoids[2].toFixed(3) + ")" : "n/a") : "\u2013"; }});
     cols.push({key: "cells", label: "Cells", num: true, dir: "desc", get: function (x) { return x.s.cells; }});
     cols.push({key: "file", label: "Policy file", title: "the policy file attached to the record", dir: "asc",
                get: function (x) { return x.r.policy_file ? "attached" : null; }});
     cols.push({key: "verified", label: "Verified", title: "episodes re-run by frbench verify and reproduced", num: true, dir: "desc",
                get: function (x) { return x.r.verified ? x.r.verified.sample : null; },
-               show: function (x) { var v = x.r.verified; return v ? "\u2713 " + v.sample + " (" + v.mode + ")" : "\u2013"; }});
+               show: function (x) { var v = x.r.verified; return v ? "\u2713 " + v.sample + " (" + v.mode + ")" + (v.processor_bound ? " \u2020" : "") : "\u2013"; }});
     cols.push({key: "submitted", label: "Submitted", dir: "asc", get: function (x) { return x.r.submitted.slice(0, 10); }});
     cols.push({key: "id", label: "Record", dir: "asc", id: true, get: function (x) { return x.r.id.slice(0, 12); }});
     return cols;
@@ -341,7 +356,8 @@ PAGE_SCRIPT = r"""
     dlRow(dl, "Policy file", rec.policy_file ? rec.policy_file + (rec.policy_file.startsWith("policies/") ? " (attached)" : "") : "none attached");
     var v = rec.verified;
     dlRow(dl, "Verified", v ? v.sample + " episodes in " + v.cells + " cells re-run and reproduced (" + v.mode + ", sample seed " +
-          v.seed + ", " + v.policy + " policy, frbench " + v.frbench_commit.slice(0, 12) + ", " + v.verified + ")" : "not verified");
+          v.seed + ", " + v.policy + " policy, frbench " + v.frbench_commit.slice(0, 12) + ", " + v.verified + ")" +
+          (v.processor_bound ? " \u2020 " + PROCESSOR_BOUND : "") : "not verified");
     dlRow(dl, "Robots (URDF sha256, source)", keyTable(p.robots, function (v) { return v.urdf_sha256 + "  " + v.source; }));
     dlRow(dl, "Seeds", p.config.seeds.join(", "));
     dlRow(dl, "Episodes", p.config.episodes + " per cell, " + rec.episodes + " scored");

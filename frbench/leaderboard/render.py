@@ -27,6 +27,8 @@ from frbench.leaderboard.scores import (
     overlaps,
     rank_key,
     score_intervals,
+    generalisation,
+    needs_unseen_grid,
     scored_cells,
 )
 from frbench.leaderboard.verify import RELATIVE_TOLERANCE
@@ -51,14 +53,46 @@ def _identity(record: dict) -> dict:
     (``policies/...`` or None) and its latest passed verification (`frbench verify --save`, or None)."""
     sub = record["submission"]
     keys = ("name", "policy", "submitter", "description", "link", "submitted")
-    verifications = record.get("verifications") or [None]
+    verified = (record.get("verifications") or [None])[-1]
+    if verified is not None and processor_bound(record):
+        verified = {**verified, "processor_bound": True}
     return {"id": record["id"], **{key: sub[key] for key in keys}, "track": record["track"],
-            "policy_file": policy_file_label(record.get("policy_file")), "verified": verifications[-1]}
+            "policy_file": policy_file_label(record.get("policy_file")), "verified": verified}
+
+
+def processor_bound(record: Mapping) -> bool:
+    """Whether a verification of the record holds only on the processor that ran it: a learned policy (one with
+    a checkpoint) evaluated before protocol 1.2, whose float32 inference depends on the CPU's vector kernels."""
+    results = record["results"]
+    return results["policy"].get("sha256") is not None and not needs_unseen_grid(results["protocol_version"])
+
+
+#: The note on a processor-bound verification (`processor_bound`), marked with a dagger.
+PROCESSOR_BOUND_NOTE = (
+    "† verified on the verifying machine's processor only: the policy is learned and ran float32 inference, whose "
+    "last bits depend on the CPU's vector kernels (on an AVX-512 machine `frbench verify f3a8b4dd2ded --sample 4 "
+    "--seed 1` fails 4/4; so do dreamriser-3m and frnet-no-stability-15m). Protocol 1.2 infers in float64 with "
+    "float32-rounded actions, so its records verify on any x86-64 machine (docs/protocol.md).")
 
 
 def fmt_verified(verified: Mapping | None) -> str:
-    """``16 exact``: the episodes a passed verification reproduced and how it compared them; ``-`` if none."""
-    return f"{verified['sample']} {verified['mode']}" if verified else "-"
+    """``16 exact``: the episodes a passed verification reproduced and how it compared them (``†``: on its
+    processor only, `processor_bound`); ``-`` if none."""
+    if not verified:
+        return "-"
+    return f"{verified['sample']} {verified['mode']}" + (" †" if verified.get("processor_bound") else "")
+
+
+def fmt_generalisation(row: Mapping, key: str) -> str:
+    """A row's unseen score (``unseen``), matched standard score (``matched``), gap (``gap``) or humanoid score
+    (``humanoids``: n/a when the policy drives none) with its interval; ``-`` for a record without the unseen grid."""
+    g = row.get("generalisation")
+    if g is None:
+        return "-"
+    if key == "gap":
+        return fmt_gap(g["gap"])
+    value = g[key]
+    return "n/a" if value is None else fmt_interval(value[0], value[1:])
 
 
 def _ordered(standard: Sequence, found: Iterable) -> list:
@@ -127,12 +161,14 @@ def board(records: Sequence[Mapping], *, robot: str | None = None, backend: str 
         scores = aggregate(groups_of(cells), robot=robot, backend=backend, terrain=terrain)
         if scores is None:
             continue
+        unfiltered = robot is None and backend is None and terrain is None
         sections[section_of(record)].append({
             **_identity(record),
             "inputs": inputs_of(record),
             "protocol_version": record["results"]["protocol_version"],
             "scores": scores,
             "intervals": score_intervals(cells, robot=robot, backend=backend, terrain=terrain),
+            "generalisation": generalisation(record["results"]["cells"], record["track"]) if unfiltered else None,
         })
     _rank(sections["main"])
     sections["partial"].sort(key=lambda row: rank_key(row["scores"], row["submitted"], row["id"]))
@@ -142,7 +178,23 @@ def board(records: Sequence[Mapping], *, robot: str | None = None, backend: str 
     archived.sort(key=lambda row: (row["protocol_version"], row["track"] != "main",
                                    rank_key(row["scores"], row["submitted"], row["id"])))
     filters = {k: v for k, v in (("robot", robot), ("backend", backend), ("terrain", terrain)) if v is not None}
-    return {"filters": filters, "protocol_version": PROTOCOL_VERSION, **sections}
+    return {"filters": filters, "protocol_version": PROTOCOL_VERSION, **sections,
+            "unseen_ranking": unseen_ranking(sections["main"])}
+
+
+def unseen_ranking(main: Sequence[Mapping]) -> list[dict]:
+    """The main board ranked by unseen success (higher first; ties by the board's order): name, id, board rank,
+    unseen [score, low, high] and gap [point, low, high]; ``tied_above`` when the unseen intervals overlap."""
+    rows = sorted((r for r in main if r.get("generalisation")), key=lambda r: (-r["generalisation"]["unseen"][0], r["rank"]))
+    out = []
+    for rank, row in enumerate(rows, 1):
+        above = rows[rank - 2]["generalisation"]["unseen"][1:] if rank > 1 else None
+        out.append({"rank": rank, "name": row["name"], "id": row["id"], "board_rank": row["rank"],
+                    "unseen": row["generalisation"]["unseen"], "gap": row["generalisation"]["gap"],
+                    "matched": row["generalisation"]["matched"],
+                    "humanoids": row["generalisation"]["humanoids"],
+                    "tied_above": overlaps(row["generalisation"]["unseen"][1:], above)})
+    return out
 
 
 def fmt_score(value: float | None) -> str:
@@ -193,6 +245,8 @@ def _columns(families: Sequence[str], backends: Sequence[str], ranked: bool) -> 
     columns += [(b, lambda r, b=b: iv(r, "per_backend", b)) for b in backends]
     columns += [
         ("gap mj-pb", lambda r: fmt_gap(r["intervals"]["signed_gap"])),
+        ("unseen", lambda r: fmt_generalisation(r, "unseen")),
+        ("matched-unseen", lambda r: fmt_generalisation(r, "gap")),
         ("cells", lambda r: str(r["scores"]["cells"])),
         ("file", lambda r: "yes" if r["policy_file"] else "-"),
         ("verified", lambda r: fmt_verified(r["verified"])),
@@ -250,6 +304,32 @@ def _md_row(values: Iterable[str]) -> str:
     return "| " + " | ".join(values) + " |"
 
 
+def _unseen_text() -> str:
+    from frbench.evaluation.grids import unseen_part
+
+    part = unseen_part()
+    return (f"{len(part.robots)} real quadrupeds no policy trains on ({', '.join(part.robots)}) x both backends x "
+            f"{', '.join(part.terrains)} x levels {'/'.join(map(str, part.levels))} x seeds "
+            f"{'/'.join(map(str, part.seeds))}, {part.episodes} episodes per cell")
+
+
+def unseen_table(ranking: Sequence[Mapping]) -> list[str]:
+    """The Markdown table of `unseen_ranking`."""
+    if not ranking:
+        return ["_No record has the unseen grid yet._", ""]
+    out = [_md_row(["#", "Name", "Unseen", "Matched std", "Matched − unseen", "Humanoids", "Main-board rank", "Record"]),
+           _md_row(["---"] * 8)]
+    for row in ranking:
+        out.append(_md_row([
+            str(row["rank"]) + (" ~" if row["tied_above"] else ""), md_escape(row["name"]),
+            f"**{fmt_interval(row['unseen'][0], row['unseen'][1:])}**",
+            fmt_interval(row["matched"][0], row["matched"][1:]), fmt_gap(row["gap"]),
+            "n/a" if row["humanoids"] is None else fmt_interval(row["humanoids"][0], row["humanoids"][1:]),
+            str(row["board_rank"]), f"[{row['id'][:12]}](records/{record_file_name(row['id'])})",
+        ]))
+    return out + [""]
+
+
 def render_markdown(records: Sequence[Mapping]) -> str:
     """``leaderboard/README.md``."""
     data = board(records)
@@ -288,13 +368,15 @@ def render_markdown(records: Sequence[Mapping]) -> str:
         "",
         f"## Main board (protocol {PROTOCOL_VERSION})",
         "",
-        f"Records that cover the standard grid: {_standard_text()}.",
+        f"Records that cover the standard grid: {_standard_text()}; from protocol 1.2 on also the unseen grid",
+        "(below; a 1.2 record without it is partial). *Overall* and the columns up to *Gap* are the standard grid's.",
         "Ranked by overall success, then by sim-to-sim gap. A `~` after a rank: the record's overall interval",
         "overlaps the one of the record above it, so their order is not established by the data.",
         "",
     ]
     header = ["Name", "Policy", "Submitter", "Overall"] + [md_escape(f) for f in families] \
-        + [BACKEND_LABELS.get(b, md_escape(b)) for b in backends] + ["Gap", "Policy file", "Verified", "Record"]
+        + [BACKEND_LABELS.get(b, md_escape(b)) for b in backends] \
+        + ["Gap", "Matched std", "Unseen", "Matched − unseen", "Humanoids", "Policy file", "Verified", "Record"]
 
     def table(rows: list[dict], ranked: bool, protocol: bool = False) -> list[str]:
         if not rows:
@@ -315,12 +397,26 @@ def render_markdown(records: Sequence[Mapping]) -> str:
             values += [fmt_interval(s["per_backend"].get(b), iv["per_backend"].get(b)) for b in backends]
             file = (f"[{row['policy_file'][9:21]}]({row['policy_file']})" if row["policy_file"].startswith("policies/")
                     else md_escape(row["policy_file"])) if row["policy_file"] else "-"
-            values += [fmt_gap(iv["signed_gap"]), file, fmt_verified(row["verified"]), f"[{row['id'][:12]}](records/{record_file_name(row['id'])})"]
+            values += [fmt_gap(iv["signed_gap"]), fmt_generalisation(row, "matched"), fmt_generalisation(row, "unseen"),
+                       fmt_generalisation(row, "gap"),
+                       fmt_generalisation(row, "humanoids"), file, fmt_verified(row["verified"]),
+                       f"[{row['id'][:12]}](records/{record_file_name(row['id'])})"]
             rank = [(str(row["rank"]) + (" ~" if row["tied_above"] else "")) if "rank" in row else "-"] if ranked else []
             out.append(_md_row(rank + values))
         return out + [""]
 
     lines += table(data["main"], True)
+    lines += [
+        f"### Ranked by unseen success (protocol {PROTOCOL_VERSION})",
+        "",
+        f"The main board by mean success on the unseen grid: {_unseen_text()}. *Matched std*: the standard grid's",
+        "cells on the same families and levels (the five training-distribution robots, 320 cells); *Matched − unseen*:",
+        "their difference with its 95 % interval (both resampled): what the policy loses on bodies it never trained on,",
+        "terrain held equal. *Humanoids*: the unseen humanoid set (Talos, iCub) for a policy that drives humanoids, n/a",
+        "for the others.",
+        "",
+    ]
+    lines += unseen_table(data["unseen_ranking"])
     lines += [
         f"## Partial records (protocol {PROTOCOL_VERSION})",
         "",
@@ -338,6 +434,8 @@ def render_markdown(records: Sequence[Mapping]) -> str:
         "",
     ]
     lines += table(data["archived"], True, protocol=True)
+    if any((row.get("verified") or {}).get("processor_bound") for row in data["archived"]):
+        lines += [PROCESSOR_BOUND_NOTE, ""]
     by_id = {r["id"]: r for r in records}
     rows = data["main"] + data["partial"] + data["archived"]
     lines += ["## Records", ""]
@@ -374,7 +472,8 @@ def render_markdown(records: Sequence[Mapping]) -> str:
             lines.append(
                 f"  - Verified {check['verified']}: `frbench verify --sample {check['sample']} --seed {check['seed']}` re-ran "
                 f"{check['sample']} episodes in {check['cells']} cells with the {check['policy']} policy at frbench "
-                f"{check['frbench_commit'][:12]} and reproduced them ({'bit-identical' if check['mode'] == 'exact' else 'within tolerance'})."
+                f"{check['frbench_commit'][:12]} and reproduced them ({'bit-identical' if check['mode'] == 'exact' else 'within tolerance'})"
+                + (" on that machine's processor only †." if processor_bound(record) else ".")
             )
     if rows:
         lines.append("")
@@ -401,6 +500,7 @@ def page_data(records: Sequence[Mapping]) -> dict:
             "protocol_version": record["results"]["protocol_version"],
             "episodes": record["scores"]["episodes"],
             "groups": [[*key, total, count] for key, (total, count) in groups.items()],
+            "generalisation": generalisation(record["results"]["cells"], record["track"]),
             "intervals": intervals,
             "provenance": {k: record["results"][k] for k in PROVENANCE_FIELDS},
         })

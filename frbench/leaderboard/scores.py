@@ -119,6 +119,16 @@ def scored_cells(cells: Sequence[Mapping], track: str) -> list[Mapping]:
     return others or list(cells)
 
 
+def matched_standard_cells(cells: Sequence[Mapping]) -> list[Mapping]:
+    """The standard grid's cells on the unseen grid's families and levels (flat, rough, slopes, stairs at levels 1
+    and 5: 320 cells): the same terrains on the training-distribution robots, so that standard − unseen measures
+    the bodies, not the terrain difficulty."""
+    from frbench.tasks.protocol import UNSEEN_LEVELS, UNSEEN_TERRAINS
+
+    return [c for c in cells if cell_key(c) in STANDARD_GRID and c["terrain"] in UNSEEN_TERRAINS
+            and c["level"] in UNSEEN_LEVELS]
+
+
 def unseen_cells(cells: Sequence[Mapping], humanoids: bool = False) -> list[Mapping]:
     """The record's cells of the unseen grid (its quadrupeds, or its humanoid set)."""
     grid = unseen_humanoid_grid() if humanoids else unseen_grid()
@@ -195,13 +205,15 @@ def _scores_of(cells: Sequence[Mapping]) -> dict:
 def record_scores(cells: Sequence[Mapping], track: str) -> dict:
     """The ``scores`` stored in a record: the standard (or, partial, the record's own) grid's; with the unseen
     grid's cells also ``unseen`` (its quadrupeds) and ``unseen_humanoids`` (when the policy drives humanoids)
-    with the same fields, and ``generalisation_gap`` = overall − unseen overall. Records without unseen cells
+    with the same fields, and ``generalisation_gap`` = the matched standard cells' mean (`matched_standard_cells`)
+    − the unseen mean. Records without unseen cells
     (every record before protocol 1.2) keep exactly their former scores."""
     scores = _scores_of(scored_cells(cells, track))
     unseen = unseen_cells(cells)
-    if unseen and len(unseen) < len(cells):
+    matched = matched_standard_cells(cells)
+    if unseen and matched:
         scores["unseen"] = _scores_of(unseen)
-        scores["generalisation_gap"] = scores["overall"] - scores["unseen"]["overall"]
+        scores["generalisation_gap"] = _scores_of(matched)["overall"] - scores["unseen"]["overall"]
         humanoids = unseen_cells(cells, humanoids=True)
         if humanoids:
             scores["unseen_humanoids"] = _scores_of(humanoids)
@@ -285,3 +297,34 @@ def _points(cells: Sequence[Mapping]) -> np.ndarray:
 def overlaps(a: Sequence[float] | None, b: Sequence[float] | None) -> bool:
     """Whether two intervals [low, high] overlap (None never does)."""
     return a is not None and b is not None and a[0] <= b[1] and b[0] <= a[1]
+
+
+def generalisation(cells: Sequence[Mapping], track: str) -> dict | None:
+    """The unseen grid's scores of a record's cells with 95 % intervals, None without unseen cells:
+    ``unseen`` [score, low, high] over its quadruped cells, ``matched`` [score, low, high] over the standard cells
+    on the same families and levels (`matched_standard_cells`), ``gap`` [point, low, high] = matched − unseen (per
+    bootstrap replicate: both resampled), and ``humanoids`` [score, low, high] over the humanoid set, or None
+    ("n/a": the policy does not drive humanoids). ``track`` is kept for the callers' symmetry."""
+    unseen = unseen_cells(cells)
+    scored = matched_standard_cells(cells)
+    if not unseen or not scored:
+        return None
+
+    def mean_and_replicates(chosen: Sequence[Mapping]) -> tuple[float, np.ndarray, int, int]:
+        _, rates = _replicates(_fingerprint(chosen))
+        point = math.fsum(c["successes"] / c["episodes"] for c in chosen) / len(chosen)
+        return point, rates.mean(axis=1), sum(c["successes"] for c in chosen), sum(c["episodes"] for c in chosen)
+
+    u_point, u_reps, u_k, u_n = mean_and_replicates(unseen)
+    s_point, s_reps, s_k, s_n = mean_and_replicates(scored)
+    humanoid = unseen_cells(cells, humanoids=True)
+    h = None
+    if humanoid:
+        h_point, h_reps, h_k, h_n = mean_and_replicates(humanoid)
+        h = [h_point, *percentile_interval(h_reps, h_k, h_n)]
+    return {
+        "unseen": [u_point, *percentile_interval(u_reps, u_k, u_n)],
+        "matched": [s_point, *percentile_interval(s_reps, s_k, s_n)],
+        "gap": [s_point - u_point, *percentile_interval(s_reps - u_reps)],
+        "humanoids": h,
+    }
