@@ -110,7 +110,9 @@ def test_checkpoint_loads_as_learned_policy_with_the_students_inputs(tmp_path):
         o_t, history = tracker.observe(obs)
         mine = student_actions(actor, o_t, history)
         tracker.acted(mine)
-        np.testing.assert_allclose(policy.act(obs), np.asarray(spec.default_pose) + tracker.previous, atol=1e-5)
+        # the policy infers in float64 (protocol 1.2), `student_actions` in float32: equal to float32 rounding,
+        # which on these untrained outputs of order 10 reaches about 2e-5
+        np.testing.assert_allclose(policy.act(obs), np.asarray(spec.default_pose) + tracker.previous, atol=1e-4)
 
 
 @pytest.mark.parametrize("simulator", ["mujoco", "pybullet"])

@@ -86,8 +86,15 @@ def test_torchscript_frnet_with_the_spec_json_as_sidecar_gives_the_checkpoint_s_
         torch.jit.save(torch.jit.script(load_policy("frnet").actor.as_jit()), str(path))
     assert main(["spec", "--robot", "go2", "--policy", "frnet", "--json"]) == 0
     path.with_name(path.name + ".json").write_text(capsys.readouterr().out)
+    scripted, checkpoint, spec = load_policy(str(path)), load_policy("frnet"), get_robot("go2")
+    scripted.reset(spec, 4)
+    checkpoint.reset(spec, 4)
+    # The checkpoint infers in float64 (protocol 1.2); the user's TorchScript file keeps its own dtype, so the
+    # two agree to float32 rounding, not bit for bit.
+    largest = max(float(np.abs(checkpoint.act(obs) - scripted.act(obs)).max()) for obs in _task_steps())
+    assert largest < 1e-5
     results = evaluate(folder / "frnet-script.json", str(path))
-    assert results["episodes"] == reference["frnet"]["episodes"]  # the same float32 kernels: bit-identical
+    assert [e["success"] for e in results["episodes"]] == [e["success"] for e in reference["frnet"]["episodes"]]
 
 
 def test_model_files_carry_their_layout_without_a_sidecar(folder, frnet_onnx):
