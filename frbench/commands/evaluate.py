@@ -37,7 +37,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "(the five training-distribution quadrupeds, 840 cells), unseen (real quadrupeds no policy trains on, "
                    "576 cells, + the humanoid set for a humanoid policy) or standard,unseen (docs/protocol.md)")
     p.add_argument("--robots", type=_list, default=None, help="comma-separated robot names or URDF paths (default go2)")
-    p.add_argument("--backends", type=_list, default=None, help="mujoco,pybullet")
+    p.add_argument("--backends", type=_list, default=None, help="mujoco,pybullet (mujoco-warp with the gpu extra)")
     p.add_argument("--terrains", type=_list, default=None, help="terrain families (default: all seven)")
     p.add_argument("--levels", type=_ints, default=None, help="difficulty levels 1-10 (default 1,5,10)")
     p.add_argument("--seeds", type=_ints, default=None, help="evaluation seeds (default 0,1)")

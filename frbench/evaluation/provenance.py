@@ -10,7 +10,8 @@ from pathlib import Path
 import frbench
 
 _PACKAGES = {"mujoco": "mujoco", "pybullet": "pybullet", "pinocchio": "pin", "numpy": "numpy",
-             "torch": "torch", "gymnasium": "gymnasium", "rsl_rl": "rsl-rl-lib", "example_robot_data": "example-robot-data"}
+             "torch": "torch", "gymnasium": "gymnasium", "rsl_rl": "rsl-rl-lib", "example_robot_data": "example-robot-data",
+             "mujoco_warp": "mujoco-warp", "warp": "warp-lang"}  # the last two: the optional gpu extra
 
 
 def library_versions() -> dict[str, str]:
