@@ -129,3 +129,46 @@ def test_bad_arguments():
     with pytest.raises(ValueError, match="lie in"):
         c.update([4], [True])
     c.update([], [])
+
+
+def test_moved_levels_is_one_rule_for_numpy_and_torch():
+    import torch
+
+    from frbench.training.curriculum import moved_levels
+
+    rng = np.random.default_rng(3)
+    level = rng.integers(1, 11, 400)
+    episodes = rng.integers(0, 5, 400)
+    successes = np.minimum(rng.integers(0, 5, 400), episodes)
+    drawn = rng.integers(1, 11, 400)
+
+    def rule(lv, s, e, pick):
+        return moved_levels(lv, s, e, lambda over: pick, promote=0.6, demote=0.3, max_level=10)
+
+    got_np = rule(level, successes, episodes, drawn)
+    got_torch = rule(*(torch.as_tensor(a) for a in (level, successes, episodes, drawn)))
+    np.testing.assert_array_equal(got_torch.numpy(), got_np)
+    rate = successes / np.maximum(episodes, 1)
+    expected = level + (rate >= 0.6) - ((rate < 0.3) & (rate < 0.6))
+    expected = np.clip(np.where(expected > 10, drawn, expected), 1, 10)
+    np.testing.assert_array_equal(got_np, expected)
+    assert (level + (rate >= 0.6) > 10).sum() > 0  # the redraw branch is exercised
+
+
+def test_device_curriculum_moves_levels_as_the_cpu_curriculum():
+    import torch
+
+    from frbench.training.device_env import DeviceCurriculum
+
+    cpu = make(32, seed=5)
+    device = DeviceCurriculum(cpu.families, torch.tensor(cpu.family), torch.tensor(cpu.level),
+                              torch.Generator().manual_seed(0))
+    rng = np.random.default_rng(9)
+    for _ in range(150):  # success rate 0.3: levels stay below the top, so neither redraws
+        judged = rng.random(32) < 0.5
+        success = rng.random(32) < 0.3
+        cpu.update(np.flatnonzero(judged), success[judged])
+        device.update(torch.as_tensor(judged), torch.as_tensor(success))
+        np.testing.assert_array_equal(device.level.numpy(), cpu.level)
+        assert cpu.level.max() < cpu.max_level
+    assert len(set(cpu.level.tolist())) >= 3

@@ -238,20 +238,40 @@ def write_actuator_params(gain: np.ndarray, bias: np.ndarray, force_range: np.nd
     """Write ``params``' gains, strength and motor friction into the per-simulation actuator fields of a model
     built by `build_model`, in place: ``gain`` (N, nu, 10) ``actuator_gainprm``, ``bias`` (N, nu, 10)
     ``actuator_biasprm``, ``force_range`` (N, nu, 2) ``actuator_forcerange``; ``limits`` (J,) torque limits
-    [N·m]. Rows 0 … J−1 are the PD actuators, J … 2J−1 the motor friction (`frbench.backends.mujoco_model`)."""
-    j = len(limits)
+    [N·m]. The formula is `write_actuator_fields`'."""
     strength = np.asarray(params.motor_strength, dtype=float)
     if np.any(strength < 0):
         raise ValueError("motor_strength: expected values >= 0 (the strength scales the PD's force range)")
-    gain[:, :j, 0] = strength * params.kp
-    bias[:, :j, 1] = -strength * params.kp
-    bias[:, :j, 2] = -strength * params.kd
+    friction = np.zeros((len(strength), len(limits))) if params.motor_friction is None else params.motor_friction
+    write_actuator_fields(gain, bias, force_range, params.kp, params.kd, strength, np.asarray(friction), limits)
+
+
+def write_actuator_fields(gain, bias, force_range, kp, kd, strength, motor_friction, limits,
+                          friction_velocity: float = MOTOR_FRICTION_VELOCITY) -> None:
+    """The one formula from a world's PD gains, motor strength and motor friction to its actuator fields, in
+    place, for numpy arrays (MuJoCo C, Warp on the host) and torch tensors on a device (the device trainer) alike.
+
+    Args:
+        gain: (N, nu, 10) ``actuator_gainprm``.
+        bias: (N, nu, 10) ``actuator_biasprm``.
+        force_range: (N, nu, 2) ``actuator_forcerange``.
+        kp, kd: (N, J) PD gains [N·m/rad, N·m·s/rad].
+        strength: (N, J) motor strength factors, ≥ 0 (scales the PD's gains and force range).
+        motor_friction: (N, J) Coulomb motor friction [N·m].
+        limits: (J,) torque limits [N·m].
+        friction_velocity: the velocity [rad/s] at which the friction actuator saturates.
+
+    Rows 0 … J−1 are the PD actuators, J … 2J−1 the motor friction (`frbench.backends.mujoco_model`).
+    """
+    j = limits.shape[0]
+    gain[:, :j, 0] = strength * kp
+    bias[:, :j, 1] = -strength * kp
+    bias[:, :j, 2] = -strength * kd
     force_range[:, :j, 0] = -strength * limits
     force_range[:, :j, 1] = strength * limits
-    friction = np.zeros((len(strength), j)) if params.motor_friction is None else params.motor_friction
-    bias[:, j:, 2] = -np.asarray(friction) / MOTOR_FRICTION_VELOCITY
-    force_range[:, j:, 0] = -friction
-    force_range[:, j:, 1] = friction
+    bias[:, j:, 2] = -motor_friction / friction_velocity
+    force_range[:, j:, 0] = -motor_friction
+    force_range[:, j:, 1] = motor_friction
 
 
 def write_state(qpos: np.ndarray, qvel: np.ndarray, state: RobotState, qadr, dadr) -> None:

@@ -34,10 +34,38 @@ import numpy as np
 
 from frbench.terrains import FAMILIES
 
-__all__ = ["TerrainCurriculum"]
+__all__ = ["TerrainCurriculum", "moved_levels"]
 
 _STATE_VERSION = 1
 _BIT_GENERATORS = ("PCG64", "PCG64DXSM", "Philox", "SFC64", "MT19937")
+
+
+def moved_levels(level, successes, episodes, redraw, *, promote: float, demote: float, max_level: int):
+    """The rule's one implementation: the levels of environments whose block just ended, for numpy arrays (the
+    CPU trainer's `TerrainCurriculum`) and torch tensors on a device (the device trainer) alike.
+
+    Args:
+        level: (M,) int, the environments' current levels.
+        successes, episodes: (M,) int, the block's successful and finished episodes (``episodes`` ≥ 1 where it
+            matters; 0 entries count as 1).
+        redraw: ``redraw(over)`` → (M,) int of ``level``'s kind, a uniform draw from [1, ``max_level``] at every
+            entry where the bool mask ``over`` holds (the caller's generator; other entries are not read).
+        promote, demote: the block success rates at or above which a level goes up, below which it goes down.
+        max_level: the hardest level.
+
+    Returns:
+        (M,) int: one level up, down or the same; a promotion beyond ``max_level`` takes the redrawn level;
+        clamped to [1, ``max_level``].
+    """
+    from frbench.tasks.arrays import namespace
+
+    xp = namespace(level)
+    rate = successes / xp.clip(episodes, 1, None)
+    up = rate >= promote
+    down = ~up & (rate < demote)
+    new = level + xp.astype(up, level.dtype) - xp.astype(down, level.dtype)
+    over = new > max_level
+    return xp.clip(xp.where(over, redraw(over), new), 1, max_level)
 
 
 class TerrainCurriculum:
@@ -122,14 +150,15 @@ class TerrainCurriculum:
         ready = ids[self._episodes[ids] >= self.window]
         if ready.size == 0:
             return
-        rate = self._successes[ready] / self._episodes[ready]
-        up = rate >= self.promote_threshold
-        down = ~up & (rate < self.demote_threshold)
-        new = self.level[ready] + up - down
-        over = new > self.max_level
-        if over.any():
-            new[over] = self._rng.integers(1, self.max_level + 1, size=int(over.sum()))
-        self.level[ready] = np.clip(new, 1, self.max_level)
+        def redraw(over: np.ndarray) -> np.ndarray:
+            drawn = np.zeros(over.shape, dtype=np.int64)
+            if over.any():
+                drawn[over] = self._rng.integers(1, self.max_level + 1, size=int(over.sum()))
+            return drawn
+
+        self.level[ready] = moved_levels(self.level[ready], self._successes[ready], self._episodes[ready], redraw,
+                                         promote=self.promote_threshold, demote=self.demote_threshold,
+                                         max_level=self.max_level)
         self._successes[ready] = 0
         self._episodes[ready] = 0
 

@@ -27,8 +27,8 @@ reads); ``extras["log"]`` carries nothing per step.
 
 Each episode's physics (gains, motor strength, motor friction) is drawn on the device as the CPU trainer draws
 it (the first episode's is the CPU trainer's own draw, from the bundle), written into the worlds' actuator
-fields (`write_actuators`). Differences from the CPU trainer, by design of this first version: starts come from
-the bank (settled under nominal gains) instead of a fresh settle per episode; no demo, rise or assist starts, no
+fields by the formula MuJoCo C's backend uses (`frbench.backends.mujoco_backend.write_actuator_fields`).
+Differences from the CPU trainer, by design of this first version: starts come from the bank (settled under nominal gains) instead of a fresh settle per episode; no demo, rise or assist starts, no
 held actions, no base controller (the bundle refuses such configs).
 """
 
@@ -42,8 +42,10 @@ from rsl_rl.env import VecEnv
 from tensordict import TensorDict
 
 from frbench.backends.base import CONTACT_FORCE_THRESHOLD, RobotState
+from frbench.backends.mujoco_backend import write_actuator_fields
 from frbench.tasks.observations import flatten, proprioception
 from frbench.tasks.success import StepSignals, SuccessTracker
+from frbench.training.curriculum import TerrainCurriculum, moved_levels
 from frbench.training.device_bundle import check_device_config
 from frbench.training.height_raster import HALF_SIZE, RESOLUTION
 from frbench.training.observation_groups import privileged_groups
@@ -74,13 +76,11 @@ class DeviceSpec:
 
 
 class DeviceCurriculum:
-    """Per-environment terrain family and level as tensors, moved by `frbench.training.curriculum`'s rule (one
-    level up when a block of ``window`` episodes succeeded at least ``promote_threshold`` of the time, down below
-    ``demote_threshold``, a uniform redraw above ``max_level``)."""
+    """Per-environment terrain family and level as tensors, moved by `frbench.training.curriculum.moved_levels`,
+    the CPU trainer's rule (one level up when a block of ``window`` episodes succeeded at least
+    ``promote_threshold`` of the time, down below ``demote_threshold``, a uniform redraw above ``max_level``)."""
 
     def __init__(self, families: tuple[str, ...], family: torch.Tensor, level: torch.Tensor, generator):
-        from frbench.training.curriculum import TerrainCurriculum
-
         rule = TerrainCurriculum(1, np.random.default_rng(0), families=families)
         self.families, self.max_level, self.window = tuple(families), rule.max_level, rule.window
         self.promote, self.demote = rule.promote_threshold, rule.demote_threshold
@@ -94,13 +94,12 @@ class DeviceCurriculum:
         self._episodes += judged.long()
         self._successes += (judged & success).long()
         ready = judged & (self._episodes >= self.window)
-        rate = self._successes / self._episodes.clamp(min=1)
-        up = rate >= self.promote
-        down = ~up & (rate < self.demote)
-        new = self.level + up.long() - down.long()
-        redraw = torch.randint(1, self.max_level + 1, self.level.shape, device=self.level.device,
-                               generator=self.generator)
-        new = torch.where(new > self.max_level, redraw, new).clamp(1, self.max_level)
+
+        def redraw(over: torch.Tensor) -> torch.Tensor:
+            return torch.randint(1, self.max_level + 1, over.shape, device=over.device, generator=self.generator)
+
+        new = moved_levels(self.level, self._successes, self._episodes, redraw, promote=self.promote,
+                           demote=self.demote, max_level=self.max_level)
         self.level = torch.where(ready, new, self.level)
         self._successes = torch.where(ready, 0, self._successes)
         self._episodes = torch.where(ready, 0, self._episodes)
@@ -343,7 +342,7 @@ class DeviceTrainingEnv(VecEnv):
             kd = uniform(p["kd"], (n, 1)).expand(n, j) if p["kd"] else self._nominal_kd.expand(n, j)
         strength = uniform(p["motor_strength"], (n, j)) if p["motor_strength"] else torch.ones_like(kp)
         self.kp, self.kd, self.motor_strength = kp.contiguous(), kd.contiguous(), strength
-        write_actuators(self._gain, self._bias, self._force_range, kp, kd, strength,
+        write_actuator_fields(self._gain, self._bias, self._force_range, kp, kd, strength,
                         uniform(p["motor_friction"], (n, j)), self._torque_limits, p["motor_friction_velocity"])
 
     def _new_episodes(self) -> None:
@@ -552,20 +551,3 @@ def device_training_env(cfg, device: str | None = None, bundle_dir=None, log=pri
             raise FrbenchError(f"{bundle_dir}/meta.json: config field {field} is {built.get(field)!r}, the run's "
                                f"{wanted.get(field)!r}; build the bundle with the run's flags")
     return DeviceTrainingEnv(bundle, device)
-
-
-def write_actuators(gain, bias, force_range, kp, kd, strength, motor_friction, limits, friction_velocity: float) -> None:
-    """The actuator fields of N worlds in place, torch tensors on the device: ``gain`` (N, nu, 10)
-    ``actuator_gainprm``, ``bias`` (N, nu, 10) ``actuator_biasprm``, ``force_range`` (N, nu, 2) from kp, kd,
-    strength and motor friction (N, J) [N·m/rad, N·m·s/rad, -, N·m], the torque ``limits`` (J,) [N·m]:
-    `frbench.backends.mujoco_backend.write_actuator_params`'s formula (rows 0 … J−1 the PD actuators, J … 2J−1
-    the motor friction; tests/test_device_training.py checks the two give the same fields)."""
-    j = kp.shape[1]
-    gain[:, :j, 0] = strength * kp
-    bias[:, :j, 1] = -strength * kp
-    bias[:, :j, 2] = -strength * kd
-    force_range[:, :j, 0] = -strength * limits
-    force_range[:, :j, 1] = strength * limits
-    bias[:, j:, 2] = -motor_friction / friction_velocity
-    force_range[:, j:, 0] = -motor_friction
-    force_range[:, j:, 1] = motor_friction
