@@ -252,3 +252,36 @@ def test_screenshot(board_dir, tmp_path):
         assert image.size == (1400, 2200)
         colors = image.convert("RGB").resize((140, 220)).getcolors(maxcolors=1 << 16)
         assert colors is not None and len(colors) > 50  # not a blank page
+
+
+def _main_table(dom: str) -> tuple[list[str], list[list[str]]]:
+    """(column keys, rows of cell texts) of the rendered main board's table in a dumped DOM."""
+    table = dom[dom.index('id="main-table"'):]
+    table = table[:table.index("</table>")]
+    keys = re.findall(r'<th scope="col" data-key="([^"]+)"', table)
+    body = table[table.index("<tbody"):]
+    rows = [[html.unescape(re.sub(r"<[^>]+>", "", cell)) for cell in re.findall(r"<td[^>]*>(.*?)</td>", row, re.S)]
+            for row in re.findall(r"<tr[^>]*>(.*?)</tr>", body, re.S)]
+    return keys, rows
+
+
+def test_the_repository_page_shows_standard_and_unseen_success_of_every_main_record(tmp_path):
+    from frbench.leaderboard.scores import generalisation
+    from frbench.tasks.protocol import PROTOCOL_VERSION
+
+    main = [r for r in load_records(REPO_BOARD)
+            if r["track"] == "main" and r["results"]["protocol_version"] == PROTOCOL_VERSION]
+    if not main:
+        pytest.skip("no main-board record of the current protocol")
+    done = chromium(tmp_path, "--dump-dom", (REPO_BOARD / "index.html").as_uri())
+    assert done.returncode == 0 and console_errors(done.stderr) == []
+    keys, rows = _main_table(done.stdout)
+    assert len(rows) == len(main)
+    by_name = {row[keys.index("name")]: row for row in rows}
+    for record in main:
+        row = by_name[record["submission"]["name"]]
+        unseen = generalisation(record["results"]["cells"], "main")["unseen"]
+        assert row[keys.index("unseen")].startswith(f"{unseen[0]:.3f} ({unseen[1]:.3f}")
+        assert re.fullmatch(r"0\.\d{3} \(0\.\d{3}–[01]\.\d{3}\)", row[keys.index("overall")])
+        assert re.fullmatch(r"[−+]0\.\d{3} \([−+]0\.\d{3}\.\.[−+]0\.\d{3}\)", row[keys.index("gengap")])
+        assert row[keys.index("humanoids")] == "n/a"  # no main-board policy drives humanoids

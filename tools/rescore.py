@@ -191,6 +191,19 @@ def write_status(out: Path, jobs: list[Job], seconds: dict[str, float]) -> dict:
     return status
 
 
+def rescored_description(description: str, record: str) -> str:
+    """The original description, shortened with an ellipsis where needed, and what re-scored it, within the
+    board's limit of ``DESCRIPTION_MAX`` characters."""
+    from frbench.leaderboard.records import DESCRIPTION_MAX
+
+    suffix = f"; re-scored under protocol 1.2 (standard and unseen grids) from record {record[:12]}"
+    room = DESCRIPTION_MAX - len(suffix)
+    text = description.strip()
+    if len(text) > room:
+        text = text[:room - 1].rstrip() + "\u2026"
+    return text + suffix
+
+
 def submit_finished(out: Path, board: Path) -> int:
     """Submit each finished results.json whose results are not on the board yet, with its policy file."""
     from frbench.leaderboard import board as lb
@@ -210,8 +223,7 @@ def submit_finished(out: Path, board: Path) -> int:
         source = meta["submission"]
         policy = meta["policy"]
         policy_file = policy if Path(policy.split(":")[0]).is_file() else None
-        description = (source["description"] + "; re-scored under protocol 1.2 (standard and unseen grids, "
-                       f"tools/rescore.py from record {meta['record'][:12]})")[:1024]
+        description = rescored_description(source["description"], meta["record"])
         done = lb.submit(results_path, board, name=source["name"], description=description,
                          submitter=source["submitter"], link=source.get("link"), policy_file=policy_file)
         print(f"submitted {source['name']}: record {done.record['id'][:12]} ({done.record['track']})")

@@ -1,0 +1,51 @@
+"""Every main-board record of the current protocol verifies on the machine that runs the tests.
+
+`frbench verify RECORD --sample 4 --seed 1` for each of them, in-process: its policy (the attached file, the
+shipped checkpoint of the same sha256, or the built-in policy) re-runs 4 sampled episodes, which must be
+bit-identical to the record's. Protocol 1.2 evaluates learned policies with portable float64 inference
+(`frbench.policies.learned.portable_actions`), so this holds on any x86-64 processor, not only on the one that
+made the record; a record that verified only where it was made fails here.
+"""
+
+from __future__ import annotations
+
+import gzip
+import json
+from pathlib import Path
+
+import pytest
+
+from frbench.leaderboard.records import load_record
+from frbench.leaderboard.verify import verify
+from frbench.tasks.protocol import PROTOCOL_VERSION
+
+BOARD = Path(__file__).resolve().parents[1] / "leaderboard"
+#: The main board's records under protocol 1.2: the re-score of every 1.1 main-board record.
+EXPECTED_MAIN_RECORDS = 17
+SAMPLE = 4
+
+
+def main_board_files() -> list[Path]:
+    """The record files of the current protocol's main board (read directly: no checks, no scores)."""
+    chosen = []
+    for path in sorted((BOARD / "records").glob("*.json.gz")):
+        record = json.loads(gzip.decompress(path.read_bytes()))
+        if record["track"] == "main" and record["results"]["protocol_version"] == PROTOCOL_VERSION:
+            chosen.append(path)
+    return chosen
+
+
+MAIN_BOARD = main_board_files()
+
+
+def test_the_main_board_holds_the_re_scored_records():
+    assert len(MAIN_BOARD) == EXPECTED_MAIN_RECORDS
+
+
+@pytest.mark.parametrize("path", MAIN_BOARD, ids=lambda p: p.name[:12])
+def test_a_main_board_record_verifies_bit_identically_here(path):
+    record = load_record(path)
+    report = verify(record, BOARD, sample=SAMPLE, seed=1)
+    assert report.failures == [], report.failures
+    assert report.mode == "exact" and report.statistical is None
+    assert len(report.sample) == SAMPLE and report.verified
