@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from frbench.leaderboard.records import load_record
+from frbench.leaderboard.records import load_record, record_files
 from frbench.leaderboard.verify import verify
 from frbench.tasks.protocol import PROTOCOL_VERSION
 
@@ -28,7 +28,7 @@ SAMPLE = 4
 def main_board_files() -> list[Path]:
     """The record files of the current protocol's main board (read directly: no checks, no scores)."""
     chosen = []
-    for path in sorted((BOARD / "records").glob("*.json.gz")):
+    for path in record_files(BOARD)[0]:
         record = json.loads(gzip.decompress(path.read_bytes()))
         if record["track"] == "main" and record["results"]["protocol_version"] == PROTOCOL_VERSION:
             chosen.append(path)

@@ -45,8 +45,7 @@ def row(record: Mapping) -> list[str]:
                                             unseen_cells)
 
     cells = record["results"]["cells"]
-    standard = scored_cells(cells, "main")
-    overall = [mean_success(standard), *score_intervals(standard)["overall"]]
+    overall = [record["scores"]["overall"], *score_intervals(scored_cells(cells, "main"))["overall"]]
     general = generalisation(cells, "main")
     per_backend = []
     for backend in ("mujoco", "pybullet"):
@@ -59,19 +58,17 @@ def row(record: Mapping) -> list[str]:
 
 
 def standard_row(record: Mapping, earlier: Mapping | None) -> list[str]:
-    """The standard grid's cells for one record, and the overall success of ``earlier`` (same name, the protocol
-    it was re-scored from; "-" if none)."""
-    from frbench.leaderboard.scores import aggregate, groups_of, score_intervals, scored_cells
+    """The standard grid's cells for one record (its board scores, `frbench.leaderboard.scores.record_scores`), and
+    the overall success of ``earlier`` (same name, the protocol it was re-scored from; "-" if none)."""
+    from frbench.leaderboard.scores import score_intervals, scored_cells
 
     standard = scored_cells(record["results"]["cells"], "main")
-    overall = [mean_success(standard), *score_intervals(standard)["overall"]]
-    families = aggregate(groups_of(standard))["per_family"]
-    before = "-" if earlier is None else percent(mean_success(scored_cells(earlier["results"]["cells"], "main"))) + " %"
-    episodes = [e for e in record["results"]["episodes"] if (e["robot"], e["backend"], e["terrain"], e["level"], e["seed"])
-                in {(c["robot"], c["backend"], c["terrain"], c["level"], c["seed"]) for c in standard}]
-    up = sum(1 for e in episodes if e["success"])
+    scores = record["scores"]
+    overall = [scores["overall"], *score_intervals(standard)["overall"]]
+    before = "-" if earlier is None else percent(earlier["scores"]["overall"]) + " %"
+    up, episodes = sum(c["successes"] for c in standard), sum(c["episodes"] for c in standard)
     return [f"`{record['submission']['name']}`", "**" + with_interval(overall) + "**", before,
-            *(percent(families[f]) + " %" for f in FAMILIES), f"{up} / {len(episodes)}"]
+            *(percent(scores["per_family"][f]) + " %" for f in FAMILIES), f"{up} / {episodes}"]
 
 
 FAMILIES = ("flat", "stairs", "gaps", "beams")
