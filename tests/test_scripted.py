@@ -199,24 +199,6 @@ def _by_path(source: str, relative: str):
     return spec_from_path((pybullet_data_file if source == "pb" else example_robot_data)(relative))
 
 
-def test_canonical_frame_reads_the_joint_zeros_from_the_kinematics():
-    from frbench.policies.scripted import canonical_frame
-
-    for name in QUADRUPEDS:  # built-in legs hang straight down at zero: no offsets
-        assert not canonical_frame(get_robot(name))[1].any()
-    # Spirit40 folds its legs at zero (thigh pointing back, calf forward onto it); its thigh turns the other way
-    sign, offset = canonical_frame(_by_path("pb", "quadruped/spirit40.urdf"))
-    np.testing.assert_allclose(sign[:3], [1, -1, 1])
-    np.testing.assert_allclose(offset[:3], [0.0, np.pi / 2, -np.pi], atol=1e-4)
-    # Laikago's toe files bend the legs at zero
-    _, offset = canonical_frame(_by_path("pb", "laikago/laikago_toes.urdf"))
-    np.testing.assert_allclose(offset[:3], [0.0, 0.5989, -0.5112], atol=1e-4)
-    # ANYmal's knees bend forward (mirrored) and its shank is 15 degrees off the straight leg
-    sign, offset = canonical_frame(_by_path("erd", "anymal_c_simple_description/urdf/anymal.urdf"))
-    np.testing.assert_allclose(sign[:3], [1, -1, -1])
-    assert offset[1] == 0.0 and offset[2] == pytest.approx(0.2548, abs=1e-3)
-
-
 @pytest.mark.parametrize("source,relative", [("pb", "quadruped/spirit40.urdf"), ("pb", "quadruped/vision60.urdf"),
                                              ("pb", "laikago/laikago_toes.urdf")])
 def test_poses_of_robots_with_offset_zeros_are_the_canonical_ones(source, relative):

@@ -88,6 +88,28 @@ def contract_text(contract) -> str:
     return "\n".join(lines)
 
 
+def joint_frame_entry(spec) -> dict:
+    """The robot's canonical joint frame as JSON (`frbench.robots.joint_frame.JointFrame.to_dict`), or
+    ``{"reason": ...}`` saying why it has none."""
+    from frbench.robots.joint_frame import JointFrameError, joint_frame
+
+    try:
+        return joint_frame(spec).to_dict()
+    except JointFrameError as exc:
+        return {"reason": str(exc)}
+
+
+def joint_frame_text(entry: dict, joint_names) -> list[str]:
+    """The lines of ``frbench spec`` that show the canonical joint frame (or why there is none)."""
+    if "reason" in entry:
+        return ["", f"canonical joint frame: none ({entry['reason']})"]
+    lines = ["", "canonical joint frame (a policy with joint_frame 'canonical' sees canonical = sign * q + offset):",
+             "  knees: " + ", ".join(f"{leg} {way}" for leg, way in entry["knees"].items())]
+    for k, name in enumerate(joint_names):
+        lines.append(f"  {k:2d} {name:<24} sign {entry['sign'][k]:+.0f}  offset {entry['offset'][k]:7.3f} rad")
+    return lines
+
+
 def run(args) -> int:
     """Print the contract."""
     from frbench.errors import FrbenchError
@@ -99,5 +121,9 @@ def run(args) -> int:
     spec = get_robot(args.robot)
     layout = read_layout(args.spec) if args.spec else policy_layout(args.policy, spec) if args.policy else None
     contract = contract_for(spec, layout)
-    print(json.dumps(contract.to_dict(), indent=1) if args.json else contract_text(contract))
+    frame = joint_frame_entry(spec)
+    if args.json:
+        print(json.dumps({**contract.to_dict(), "joint_frame": frame}, indent=1))
+    else:
+        print("\n".join([contract_text(contract), *joint_frame_text(frame, contract.joint_names)]))
     return 0

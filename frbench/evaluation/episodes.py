@@ -13,6 +13,11 @@ handed in stays open: its builder owns it). What callers need beyond the outcome
 * ``on_step(task, targets)`` after each step, with the checked targets (N, J) [rad] just applied (frames,
   per-step records, estimator traces); returning `STOP` ends the episodes early.
 
+A policy whose ``joint_frame`` is ``"canonical"`` (frbench's learned policies, layouts that declare it) reads and writes
+joints in the robot's canonical joint frame (`frbench.robots.joint_frame`): it is reset with the robot's spec in
+that frame, its observation's joint terms are mapped into it and its targets back, here, the one place a policy's
+input and output pass; a policy that declares nothing (``"robot"``) sees the robot's own convention.
+
 A policy that declares ``uses_simulator_state`` (a planner such as ``mpc``, not a blind policy) gets the
 terrain and seed (``reset_episode``) and the simulator's `RobotState` before every action (``observe_state``).
 The returned task's simulator is closed (when built here); its ``success``, ``metrics``, ``state`` and ``starts`` stay readable.
@@ -23,7 +28,7 @@ from __future__ import annotations
 from contextlib import nullcontext
 from typing import Callable
 
-from frbench.policies.base import checked_actions
+from frbench.policies.base import checked_actions, policy_joint_frame
 from frbench.tasks.initial_states import RecordedStarts
 from frbench.tasks.recovery import EPISODE_STEPS, RecoveryTask, open_backend
 
@@ -42,7 +47,8 @@ def run_episodes(spec, backend, terrain, starts, policy, *, seed: int = 0, steps
     with open_backend(backend, spec, n, terrain) if isinstance(backend, str) else nullcontext(backend) as physics:
         task = RecoveryTask(spec, physics, terrain, n, noise_rng=noise_rng)
         obs = task.begin(starts) if isinstance(starts, RecordedStarts) else task.reset(starts)
-        policy.reset(spec, n)
+        frame = policy_joint_frame(policy, spec)
+        policy.reset(frame.canonical_spec(spec) if frame is not None else spec, n)
         privileged = getattr(policy, "uses_simulator_state", False)
         if privileged:
             policy.reset_episode(terrain, seed)
@@ -51,7 +57,7 @@ def run_episodes(spec, backend, terrain, starts, policy, *, seed: int = 0, steps
         for _ in range(steps):
             if privileged:
                 policy.observe_state(task.state)
-            targets = policy.act(obs)
+            targets = policy.act(obs) if frame is None else frame.targets(policy.act(frame.observation(obs)))
             if check:
                 targets = checked_actions(policy, targets, n, spec.n_joints)
             obs = task.step(targets)

@@ -6,6 +6,10 @@ control step, a dict of proprioceptive arrays (N rows; see
 (N, n_joints) in the spec's canonical order. Policies that think in offsets
 (the paper's q* = q̊ + a) add the default pose themselves.
 
+A policy that reads and writes joints in the canonical joint frame (`frbench.robots.joint_frame`) declares
+``joint_frame = "canonical"``; the episode runner then maps its input and output (`policy_joint_frame`). Without
+the attribute a policy works in the robot's own convention (``"robot"``).
+
 A policy that is not blind declares ``uses_simulator_state = True`` and an ``inputs`` string: the episode
 runner (`frbench.evaluation.episodes.run_episodes`) then calls ``reset_episode(terrain, seed)`` after
 ``reset`` and ``observe_state(state)`` with the simulator's `RobotState` before each ``act``, and its
@@ -38,6 +42,27 @@ class Policy(Protocol):
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         """Joint targets (N, n_joints) [rad] for the observation dict."""
+
+
+def policy_joint_frame(policy: Policy, spec: RobotSpec):
+    """The `frbench.robots.joint_frame.JointFrame` that ``policy`` reads and writes ``spec``'s joints in, or None when it
+    uses the robot's own convention (``joint_frame`` absent or ``"robot"``).
+
+    Raises:
+        PolicyError: the policy declares ``"canonical"`` and ``spec`` has no canonical frame (a humanoid, a leg that is
+            not hip-thigh-calf), or declares a value other than ``"robot"`` / ``"canonical"``.
+    """
+    from frbench.robots.joint_frame import JOINT_FRAMES, JointFrameError, joint_frame
+
+    declared = getattr(policy, "joint_frame", "robot")
+    if declared not in JOINT_FRAMES:
+        raise PolicyError(f"policy {policy.name!r}: joint_frame {declared!r}, expected one of {', '.join(JOINT_FRAMES)}")
+    if declared == "robot":
+        return None
+    try:
+        return joint_frame(spec)
+    except JointFrameError as exc:
+        raise PolicyError(f"policy {policy.name!r} declares joint_frame 'canonical', but {exc}") from None
 
 
 def checked_actions(policy: Policy, actions, num_envs: int, n_joints: int) -> np.ndarray:

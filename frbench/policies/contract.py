@@ -30,6 +30,13 @@ canonical order; matched by name). Each input of the policy is the current
 frame (``frames`` = 1, width F) or the last ``frames`` frames, oldest first and
 the current one last (width frames·F), filled with the first frame at t = 0.
 
+``joint_frame``: ``robot`` (default) — joint terms and actions in the robot file's own convention; ``canonical``
+— in the robot's canonical joint frame (`frbench.robots.joint_frame`: canonical = sign · q + offset, the Unitree
+convention with legs hanging straight down at zero), so one policy drives robots whose files turn their joints
+the other way (Solo12, Mini Cheetah, ANYmal) or fold their legs at zero (Spirit40, Vision60). Its q_default, joint
+limits and every joint term are then the canonical ones; frbench maps them where it builds the policy's input and
+reads its output (`frbench.evaluation.episodes.run_episodes`). Only quadrupeds of hip-thigh-calf legs have one.
+
 Actions a (N, J) in the layout's joint order: ``normalised``: q* = q_default +
 action_scale · a; ``targets``: q* = a [rad]; a is first clipped to
 ±``action_clip`` when set, and q* is clipped to the joint limits. The policy
@@ -45,6 +52,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from frbench.errors import PolicyError
+from frbench.robots.joint_frame import JOINT_FRAMES
 from frbench.tasks.protocol import CONTROL_DT, PROTOCOL_VERSION
 
 #: ``"format"`` of a layout dict.
@@ -119,6 +127,7 @@ class PolicyLayout:
     action_hold: int = 1
     joint_names: tuple[str, ...] | None = None
     default_pose: tuple[float, ...] | None = None
+    joint_frame: str = "robot"
 
     def frame_size(self, n_joints: int) -> int:
         """Values in one observation frame for a robot of ``n_joints`` joints (42 for frbench's, J = 12)."""
@@ -137,7 +146,8 @@ class PolicyLayout:
         inputs = "; ".join(f"{i.name} (N, {i.frames * frame})" + (f" = last {i.frames} frames" if i.frames > 1 else "")
                            for i in self.inputs)
         rule = (f"q* = q_default + {self.action_scale:g}*a" if self.action == "normalised" else "q* = a [rad]")
-        return f"inputs {inputs} float32, frame [{terms}]; action a (N, {n_joints}) {self.action}: {rule}"
+        frame_note = "; joints in the canonical frame" if self.joint_frame == "canonical" else ""
+        return f"inputs {inputs} float32, frame [{terms}]; action a (N, {n_joints}) {self.action}: {rule}{frame_note}"
 
     def to_dict(self) -> dict:
         """JSON form (`from_dict` reads it back)."""
@@ -152,6 +162,7 @@ class PolicyLayout:
             "action_hold": self.action_hold,
             "joint_names": list(self.joint_names) if self.joint_names is not None else None,
             "default_pose": list(self.default_pose) if self.default_pose is not None else None,
+            "joint_frame": self.joint_frame,
         }
 
     @classmethod
@@ -180,7 +191,10 @@ class PolicyLayout:
             "action_clip": _optional_number(data.get("action_clip", d.action_clip), f"{source}: action_clip"),
             "observation_clip": _optional_number(data.get("observation_clip"), f"{source}: observation_clip"),
             "action_hold": _count(data.get("action_hold", 1), f"{source}: action_hold"),
+            "joint_frame": data.get("joint_frame", d.joint_frame),
         }
+        if fields["joint_frame"] not in JOINT_FRAMES:
+            raise PolicyError(f"{source}: joint_frame {fields['joint_frame']!r}, expected one of {', '.join(JOINT_FRAMES)}")
         if fields["action"] not in ACTION_CONVENTIONS:
             raise PolicyError(f"{source}: action {fields['action']!r}, expected one of {', '.join(ACTION_CONVENTIONS)}")
         if not fields["observation"] or not fields["inputs"]:
@@ -353,7 +367,7 @@ def learned_layout(policy) -> PolicyLayout:
     names = {"policy": "obs"}
     inputs = tuple(LayoutInput(names.get(g, g), frames[g]) for g in policy.groups if g in frames)
     return PolicyLayout(inputs=inputs, action_scale=policy.action_scale, action_clip=10.0,
-                        action_hold=policy.action_hold)
+                        action_hold=policy.action_hold, joint_frame=policy.joint_frame)
 
 
 def sidecar_path(model_path: Path) -> Path:

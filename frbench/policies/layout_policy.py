@@ -122,6 +122,11 @@ class LayoutPolicy:
     # -- the frbench policy protocol ------------------------------------------------------------------------
 
     @property
+    def joint_frame(self) -> str:
+        """The joint frame the layout declares (``robot`` or ``canonical``; `frbench.policies.base.policy_joint_frame`)."""
+        return self.layout.joint_frame
+
+    @property
     def who(self) -> str:
         """How errors name the policy."""
         return f"policy {self.name!r}" + (f" ({self.checkpoint})" if self.checkpoint else "")
@@ -143,8 +148,11 @@ class LayoutPolicy:
         """Robots of its kind (if it has one); for the others the layout and the model are checked and a
         mismatch raises a one-line `PolicyError` that names the expected layout (a wrong input size, dtype
         or action count), rather than a bare False."""
+        from frbench.policies.base import policy_joint_frame
+
         if self.kind is not None and spec.kind != self.kind:
             return False
+        policy_joint_frame(self, spec)  # a one-line PolicyError where a canonical layout meets a robot without the frame
         self.check(self.contract(spec))
         return True
 

@@ -4,6 +4,13 @@ The checkpoint holds the actor's weights (normalisers and estimator included)
 and the training configs; this wrapper rebuilds the rsl-rl actor, keeps each
 environment's observation history and previous action, and turns actions into
 joint targets q* = q̊ + action_scale · a for the robot being evaluated.
+
+frbench's trainers observe and act in the canonical joint frame (`frbench.robots.joint_frame`), and a checkpoint
+records it (``joint_frame``). A quadruped checkpoint without that field is read as ``canonical`` too: every
+training robot's frame is the identity, so those policies were canonical-frame policies all along (their
+standard-grid episodes are bit-identical either way, ``tests/test_learned_joint_frame.py``). A residual policy
+keeps the robot's frame (its base controller maps the robot's joints itself), and so does a humanoid policy
+(humanoids have no canonical frame).
 """
 
 from __future__ import annotations
@@ -76,6 +83,17 @@ def portable_actions(actions: np.ndarray) -> np.ndarray:
     return np.asarray(actions, dtype=np.float64).astype(np.float32).astype(np.float64)
 
 
+def checkpoint_joint_frame(data: dict, robot_kind: str, residual: bool, path) -> str:
+    """The joint frame a checkpoint's policy reads and writes joints in (module docstring): its recorded
+    ``joint_frame``, else ``canonical`` for a quadruped's plain policy and ``robot`` for a residual or a humanoid's."""
+    from frbench.robots.joint_frame import JOINT_FRAMES, learner_joint_frame
+
+    frame = data.get("joint_frame", learner_joint_frame(robot_kind, residual))
+    if frame not in JOINT_FRAMES:
+        raise PolicyError(f"{path}: joint_frame {frame!r}, expected one of {', '.join(JOINT_FRAMES)}")
+    return frame
+
+
 class LearnedPolicy:
     """A trained recovery policy (proprioception only), optionally a residual over a base controller."""
 
@@ -124,6 +142,7 @@ class LearnedPolicy:
         self.actor.double()  # portable inference (protocol 1.2): see `portable_actions`
         self._torch, self._TensorDict = torch, TensorDict
 
+        self.joint_frame = checkpoint_joint_frame(data, self.robot_kind, bool(self.base_controller_name), path)
         self.base_controller = None
         if self.base_controller_name:
             self.base_controller = load_base_controller(self.base_controller_name,
@@ -131,7 +150,11 @@ class LearnedPolicy:
 
     def supports(self, spec: RobotSpec) -> bool:
         """Robots of the training robots' kind and joint count (and its base controller's, if residual)."""
+        from frbench.policies.base import policy_joint_frame
+
         fits = spec.kind == self.robot_kind and spec.n_joints == self.num_actions
+        if fits and self.base_controller is None:
+            policy_joint_frame(self, spec)  # a one-line PolicyError for a robot without a canonical frame
         return fits and (self.base_controller is None or self.base_controller.supports(spec))
 
     def reset(self, spec: RobotSpec, num_envs: int) -> None:

@@ -6,7 +6,7 @@ measured joint angles (only to start from where the legs are) and the control
 steps spent in the current phase. Every pose is computed from the robot spec
 (joint limits, default pose; canonical order FL, FR, RL, RR x hip, thigh, calf),
 written in canonical leg angles: the Unitree sign convention with legs that
-hang straight down at zero. `canonical_frame` maps any robot's joint
+hang straight down at zero. `frbench.robots.joint_frame` maps any robot's joint
 directions, joint zeros (the segment directions read from its kinematics) and
 knee direction onto them, so the same code drives Go2, Go1, Aliengo,
 Spot-like, Lite3-like and quadrupeds given by path: Solo and ANYmal (knees
@@ -46,10 +46,8 @@ from __future__ import annotations
 import numpy as np
 
 from frbench.backends.base import CONTROL_DT
-from frbench.robots.kinematics import link_poses
-from frbench.robots.sim_urdf import sim_robot_file
+from frbench.robots.joint_frame import joint_frame
 from frbench.robots.spec import QUADRUPED_LEGS, RobotSpec
-from frbench.robots.urdf_tree import parse_urdf
 
 FOLD, ROLL_A, ROLL_B, BELLY, STAND, HOLD, TOPPLE = range(7)
 PHASE_NAMES = ("fold", "roll_a", "roll_b", "belly", "stand", "hold", "topple")
@@ -93,66 +91,6 @@ BELLY_SPLAY = 0.5
 LOWER_THIGH_BACK = 0.8
 
 
-#: Joint-zero offsets [rad] below this count as zero (a leg that hangs straight down at zero angles).
-OFFSET_TOLERANCE = 1e-6
-
-
-def _sagittal_angle(v: np.ndarray) -> float:
-    """Angle [rad] of ``v`` from straight down in the body's x-z plane, positive towards -x (backwards)."""
-    return float(np.arctan2(-v[0], -v[2]))
-
-
-def _wrap(angle: float) -> float:
-    """``angle`` [rad] wrapped into [-π, π)."""
-    return float((angle + np.pi) % (2.0 * np.pi) - np.pi)
-
-
-def canonical_frame(spec: RobotSpec) -> tuple[np.ndarray, np.ndarray]:
-    """Per joint ±1 sign and offset [rad] mapping the robot's angles to the canonical leg angles the poses
-    are written in: ``canonical = sign * q + offset``, each (n_joints,).
-
-    Canonical (the Unitree convention with legs that hang straight down at zero):
-    +hip moves the foot towards +y (rotation about the body's +x); the thigh
-    angle is the direction of the hip-to-knee segment from straight down and the
-    calf angle that of the knee-to-foot segment relative to the thigh, both
-    about +y (positive swings the segment backwards, towards -x), so the
-    standing calf angle is negative (knee bent backwards). Axis directions are
-    read from the simulation URDF; the offsets are the segment directions at
-    the default pose (hips at zero) minus the joint angles there, so a file
-    whose zero pose is not a straight leg (Spirit and Vision60 fold their legs
-    at zero, Laikago's toe files bend them) gets the same poses as one whose is.
-    Offsets below `OFFSET_TOLERANCE` are zero. A leg whose standing knee bends
-    the other way (Solo, ANYmal) is mirrored front to back (thigh and calf both
-    flipped), which leaves the fold-roll-stand motion unchanged.
-    """
-    tree = parse_urdf(sim_robot_file(spec).path)
-    default = np.asarray(spec.default_pose, dtype=float)
-    zero = link_poses(tree, {})
-    hips_zero = dict(zip(spec.joint_names, default))
-    hips_zero.update({spec.joint_names[3 * k]: 0.0 for k in range(len(QUADRUPED_LEGS))})
-    standing = link_poses(tree, hips_zero)
-    sign, offset = np.ones(spec.n_joints), np.zeros(spec.n_joints)
-    for k in range(len(QUADRUPED_LEGS)):
-        hip, thigh, calf = 3 * k, 3 * k + 1, 3 * k + 2
-        axes = []
-        for j, component in ((hip, 0), (thigh, 1), (calf, 1)):
-            joint = tree.joints[spec.joint_names[j]]
-            axis = zero[joint.parent][:3, :3] @ joint.origin[:3, :3] @ (joint.axis / np.linalg.norm(joint.axis))
-            axes.append(1.0 if axis[component] >= 0 else -1.0)
-        thigh_joint, calf_joint = tree.joints[spec.joint_names[thigh]], tree.joints[spec.joint_names[calf]]
-        pivot = (standing[thigh_joint.parent] @ thigh_joint.origin)[:3, 3]
-        knee = (standing[calf_joint.parent] @ calf_joint.origin)[:3, 3]
-        foot = standing[spec.foot_links[k]][:3, 3]
-        thigh_angle = _sagittal_angle(knee - pivot)
-        calf_angle = _wrap(_sagittal_angle(foot - knee) - thigh_angle)
-        offsets = (thigh_angle - axes[1] * default[thigh], calf_angle - axes[2] * default[calf])
-        offsets = tuple(0.0 if abs(o) < OFFSET_TOLERANCE else o for o in offsets)
-        mirror = 1.0 if calf_angle <= 0 else -1.0
-        sign[hip], sign[thigh], sign[calf] = axes[0], axes[1] * mirror, axes[2] * mirror
-        offset[thigh], offset[calf] = mirror * offsets[0], mirror * offsets[1]
-    return sign, offset
-
-
 def _smoothstep(x: np.ndarray) -> np.ndarray:
     x = np.clip(x, 0.0, 1.0)
     return x * x * (3.0 - 2.0 * x)
@@ -171,7 +109,8 @@ class ScriptedPolicy:
     # ------------------------------------------------------------------ poses
     def _build_poses(self, spec: RobotSpec) -> None:
         """Every pose from the spec's limits and default pose (all (n_joints,) arrays), in canonical leg angles."""
-        self.sign, self.offset = canonical_frame(spec)
+        frame = joint_frame(spec)
+        self.sign, self.offset = np.asarray(frame.sign), np.asarray(frame.offset)
         default = self.to_canonical(np.asarray(spec.default_pose, dtype=float))
         lower = self.to_canonical(np.asarray(spec.joint_lower, dtype=float))
         upper = self.to_canonical(np.asarray(spec.joint_upper, dtype=float))
@@ -204,7 +143,7 @@ class ScriptedPolicy:
         self.push_thigh = np.minimum(self.hi[self.thigh], np.pi - self.push_calf / 2.0)
 
     def to_canonical(self, q: np.ndarray) -> np.ndarray:
-        """The robot's joint angles [rad] (..., n_joints) as canonical leg angles (see `canonical_frame`)."""
+        """The robot's joint angles [rad] (..., n_joints) as canonical leg angles (see `frbench.robots.joint_frame`)."""
         return self.sign * q + self.offset if self.offset.any() else self.sign * q
 
     def to_joints(self, canonical: np.ndarray) -> np.ndarray:

@@ -68,15 +68,24 @@ class CoreEnv:
             `observation_groups` adds (training's `frbench.training.observation_groups.PrivilegedGroups`), or None.
         variants, noise_rng, ground_height, nominal_height, track_metrics, surface_rules: as in `make_backend`
             and `RecoveryTask`.
+        joint_frame: the `frbench.robots.joint_frame.JointFrame` the learner reads and writes joints in (frbench's
+            trainers: the robots' canonical frame), or None: the robot's own convention (the Gymnasium envs).
+            The observation's joint terms go through it into o_t, and the transform's targets, which are then
+            canonical (``transform`` built on `policy_default_pose`), come back through it.
     """
 
     def __init__(self, spec: RobotSpec, backend: str, terrain, num_envs: int, *, transform, hold,
                  rng: np.random.Generator, reward: Callable | None = None, assist=None, starts=None,
                  history: int | None = None, long_history: int = 0, episode_steps: int = EPISODE_STEPS,
                  variants=None, noise_rng=None, ground_height: Callable | None = None, nominal_height=None,
-                 track_metrics: bool = True, surface_rules: bool = True, privileged: Callable | None = None):
+                 track_metrics: bool = True, surface_rules: bool = True, privileged: Callable | None = None,
+                 joint_frame=None):
         self.spec, self.terrain, self.num_envs = spec, terrain, int(num_envs)
         self.default_pose = np.asarray(spec.default_pose)
+        self.frame = joint_frame
+        #: q̊ [rad] (J,) in the learner's joint frame: what o_t's joint terms are relative to
+        self.policy_default_pose = (self.default_pose if joint_frame is None
+                                    else np.asarray(joint_frame.canonical_spec(spec).default_pose))
         self.transform, self.actions, self.reward, self.assist = transform, hold, reward, assist
         self.starts = ProtocolStarts(terrain) if starts is None else starts
         self.rng, self.privileged = rng, privileged
@@ -226,6 +235,8 @@ class CoreEnv:
         terms, alive (N,) bool)."""
         task, action = self.task, self.actions.current
         targets = self.transform.targets(task.state, action)
+        if self.frame is not None:
+            targets = self.frame.targets(targets)
         qd_prev = task.state.qd
         task.advance(targets)
         self.env_steps += self.num_envs
@@ -239,8 +250,10 @@ class CoreEnv:
         return self.task.observation()
 
     def flat_observation(self) -> np.ndarray:
-        """o_t (N, 6 + 3J), the previous action as target − q̊ [rad] (`frbench.tasks.observations.flatten`)."""
-        return flatten(self.task.observation(), self.default_pose)
+        """o_t (N, 6 + 3J), the previous action as target − q̊ [rad] (`frbench.tasks.observations.flatten`), joint
+        terms in the learner's joint frame."""
+        obs = self.task.observation()
+        return flatten(obs if self.frame is None else self.frame.observation(obs), self.policy_default_pose)
 
     def policy_observation(self) -> np.ndarray:
         """o_t (N, 6 + 3J) with the previous action in policy units (the trainer's o_t)."""

@@ -45,6 +45,7 @@ import torch
 from rsl_rl.env import VecEnv
 from tensordict import TensorDict
 
+from frbench.robots.joint_frame import learner_joint_frame, shared_joint_frame
 from frbench.tasks.actions import DirectTargets
 from frbench.tasks.core_env import CoreEnv
 from frbench.training.action_hold import HeldAction
@@ -77,9 +78,13 @@ class RecoveryTrainingEnv(VecEnv):
         self.spec = self.robots.spec
         self.num_actions = self.spec.n_joints
         self.default_pose = np.asarray(self.spec.default_pose)
+        #: the joint frame the policy observes and acts in (`learner_joint_frame`)
+        self.joint_frame = learner_joint_frame(self.spec.kind, bool(cfg.base_controller))
+        frame = shared_joint_frame(self.robots.specs) if self.joint_frame == "canonical" else None
+        policy_pose = self.default_pose if frame is None else np.asarray(frame.canonical_spec(self.spec).default_pose)
         targets_of = (ResidualController(cfg.base_controller, cfg.base_controller_parameters, self.spec,
                                          cfg.action_scale, cfg.residual_gate, cfg.gate_phases)
-                      if cfg.base_controller else DirectTargets(self.default_pose, cfg.action_scale))
+                      if cfg.base_controller else DirectTargets(policy_pose, cfg.action_scale))
         actions = HeldAction(cfg.action_hold)
         self.max_episode_length = actions.decisions_per_episode(cfg.episode_steps)
         self.episode_length_buf = torch.zeros(n, dtype=torch.long)
@@ -95,7 +100,7 @@ class RecoveryTrainingEnv(VecEnv):
                             long_history=cfg.long_history, episode_steps=cfg.episode_steps,
                             variants=self.robots.variants, ground_height=self._ground_height,
                             nominal_height=self.robots.nominal_height, track_metrics=False, surface_rules=False,
-                            privileged=PrivilegedGroups(self.raster, self.starts, self.robots))
+                            privileged=PrivilegedGroups(self.raster, self.starts, self.robots), joint_frame=frame)
         self.last_episode_stats: dict[str, float] = {}
         #: each reward term's mean per env step since the learning curve's last row (``reward_<term>``)
         self.reward_means = LossLog(prefix="reward_")

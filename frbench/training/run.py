@@ -38,6 +38,7 @@ from tqdm import tqdm
 from frbench.errors import FrbenchError
 from frbench.io import atomic_write_text
 from frbench.policies.checkpoint import CHECKPOINT_FORMAT
+from frbench.robots.joint_frame import learner_joint_frame
 from frbench.robots.morphology import morphology_ranges
 from frbench.training import distributed
 from frbench.training.config import TrainEnvConfig
@@ -339,7 +340,8 @@ def zero_output_layer(actor) -> None:
 
 def policy_checkpoint(method: str, config: dict, actor, iteration: int, env_steps: int, wall: float,
                       num_actions: int = 12, robot_kind: str = "quadruped") -> dict:
-    """The frbench policy checkpoint: plain tensors and JSON-able values only (``weights_only`` loadable)."""
+    """The frbench policy checkpoint: plain tensors and JSON-able values only (``weights_only`` loadable); its
+    ``joint_frame`` is the one the trainers observe and act in (`frbench.robots.joint_frame.learner_joint_frame`)."""
     env = config["env"]
     return {
         "format": CHECKPOINT_FORMAT,
@@ -350,6 +352,7 @@ def policy_checkpoint(method: str, config: dict, actor, iteration: int, env_step
         "history": int(env["history"]),
         "num_actions": int(num_actions),
         "robot_kind": robot_kind,
+        "joint_frame": learner_joint_frame(robot_kind, bool(env.get("base_controller"))),
         "iteration": int(iteration),
         "env_steps": int(env_steps),
         "wall_s": float(wall),
