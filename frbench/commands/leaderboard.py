@@ -13,7 +13,9 @@ stderr naming the file and field, exit 2, nothing written.
 prints the ranking (table, json) or regenerates ``leaderboard/README.md`` (md)
 or ``leaderboard/index.html`` (html). ``frbench leaderboard --check`` validates
 every record and that the generated files are up to date; it exits 1 with one
-line per problem (for CI).
+line per problem (for CI). Reading the board (and submitting) checks a record file in full once per content
+and keeps the board's summary of it in frbench's cache folder (`frbench.leaderboard.summaries`), so a read
+after the first takes about a second; ``--check`` checks every file in full at every run.
 
 The leaderboard folder is ``--root``, else ``$FRBENCH_LEADERBOARD_DIR``, else the
 repository's ``leaderboard/`` for a source checkout, else ``./leaderboard``.
@@ -108,7 +110,6 @@ def run_submit(args: argparse.Namespace) -> int:
 def run_leaderboard(args: argparse.Namespace) -> int:
     from frbench.leaderboard.board import check, regenerate
     from frbench.leaderboard.paths import INDEX, README, resolve_root
-    from frbench.leaderboard.records import load_records
     from frbench.leaderboard.render import axes, render_json, render_table
 
     root = resolve_root(args.root)
@@ -146,7 +147,9 @@ def run_leaderboard(args: argparse.Namespace) -> int:
             if other != target:
                 print(f"wrote {root / other}")
         return 0
-    records = load_records(root)
+    from frbench.leaderboard.summaries import load_summaries
+
+    records = load_summaries(root)
     known = axes(records)
     for key, listing in (("robot", "robots"), ("backend", "backends"), ("terrain", "families")):
         if filters[key] is not None and filters[key] not in known[listing]:

@@ -5,6 +5,10 @@ submission leaves the leaderboard folder byte-for-byte unchanged. Writers hold
 an exclusive lock on the folder while they list the records, create the new
 record and regenerate ``README.md`` and ``index.html``: two submissions at the
 same moment both land, and whichever regenerates last sees both records.
+
+Writers and the pages read the records' summaries (`frbench.leaderboard.summaries`: each record file checked
+in full once per content, then read from the cache); :func:`check` checks every file in full and never reads
+the cache.
 """
 
 from __future__ import annotations
@@ -27,8 +31,8 @@ from frbench.leaderboard.records import (
     UNCOMPRESSED_RECORD_RE,
     compress_hint,
     load_record,
-    load_records,
     locked,
+    record_file_bytes,
     record_file_name,
     record_files,
     record_path,
@@ -37,6 +41,7 @@ from frbench.leaderboard.records import (
     write_record,
 )
 from frbench.leaderboard.render import render_html, render_markdown
+from frbench.leaderboard.summaries import load_summaries, remember
 from frbench.leaderboard.results import check_results
 from frbench.policies.references import split_reference
 from frbench.schemas import SCHEMA_NAMES, schema_text
@@ -79,7 +84,7 @@ def regenerate(root: Path, *, only: Sequence[str] | None = None) -> list[str]:
     Returns the relative paths that changed. Refuses (writing nothing) if a record is invalid.
     """
     with locked(root):
-        return _write_generated(root, load_records(root), only)
+        return _write_generated(root, load_summaries(root), only)
 
 
 def read_results(path: str | os.PathLike) -> dict:
@@ -133,17 +138,18 @@ def submit(
                  "identical resubmissions are refused")
     with locked(root):
         try:
-            existing = load_records(root)
+            existing = load_summaries(root)
         except ResultsError as exc:
             raise ResultsError(f"cannot add a record while the leaderboard holds an invalid one: {exc}") from None
         if path.exists():
-            current = next((r for r in existing if r["id"] == record["id"]), None)
+            current = load_record(path) if any(r["id"] == record["id"] for r in existing) else None
             if attached is None or current is None or "policy_file" in current:
                 raise ResultsError(duplicate + ("" if attached is None else " (it carries a policy file already)"))
             record = {**current, "policy_file": attached.entry()}
             store(root, attached)
             replace_record(path, record)
-            _write_generated(root, [r if r["id"] != record["id"] else record for r in existing])
+            summary = remember(record)
+            _write_generated(root, [r if r["id"] != record["id"] else summary for r in existing])
             return Submission(record, path, written=True, attached_only=True)
         if attached is not None:
             store(root, attached)
@@ -152,7 +158,7 @@ def submit(
         except DuplicateRecord:
             raise ResultsError(duplicate) from None
         try:
-            _write_generated(root, [*existing, record])
+            _write_generated(root, [*existing, remember(record)])
         except FrbenchError as exc:
             raise FrbenchError(f"record {short} was written to {path}, but {exc}; run `frbench leaderboard --format md` and `--format html`") from None
     return Submission(record, path, written=True)
@@ -161,13 +167,14 @@ def submit(
 def add_verification(root: Path, path: Path, entry: dict) -> dict:
     """Append a passed verification (`frbench verify --save`) to the record at ``path``; regenerate the pages."""
     with locked(root):
-        records = load_records(root)
-        current = next((r for r in records if record_file_name(r["id"]) == path.name), None)
-        if current is None:
+        records = load_summaries(root)
+        if not any(record_file_name(r["id"]) == path.name for r in records):
             raise FrbenchError(f"{path}: not a record of the leaderboard {root}; --save writes only into a leaderboard folder")
+        current = load_record(path)
         record = {**current, "verifications": [*current.get("verifications", []), entry]}
         replace_record(path, record)
-        _write_generated(root, [r if r["id"] != record["id"] else record for r in records])
+        summary = remember(record)
+        _write_generated(root, [r if r["id"] != record["id"] else summary for r in records])
     return record
 
 
@@ -190,9 +197,12 @@ def check(root: Path) -> CheckReport:
     for other in others:
         report.problems.append(compress_hint(other) if UNCOMPRESSED_RECORD_RE.match(other.name) else
                                f"{other}: not a record: record files are named <64 hex digits>.json.gz (a leftover temporary file?)")
+    read = []
     for path in paths:
         try:
-            report.records.append(load_record(path))
+            data = record_file_bytes(path)
+            report.records.append(load_record(path, data))
+            read.append(data)
         except ResultsError as exc:
             report.problems.append(str(exc))
     for record in report.records:
@@ -215,4 +225,6 @@ def check(root: Path) -> CheckReport:
             how = {README: "--format md", INDEX: "--format html"}.get(relative, "--format md")
             state = "is missing" if current is None else "is out of date with the records"
             report.problems.append(f"{path} {state}; run `frbench leaderboard {how}` and commit the result")
+    for record, data in zip(report.records, read):  # every file passed the full check: later reads need not repeat it
+        remember(record, data)
     return report

@@ -128,12 +128,22 @@ def gzip_bytes(data: bytes) -> bytes:
 
 def read_json_object(path: str | os.PathLike, *, limit: int = MAX_RESULTS_BYTES, source: str | None = None) -> dict:
     """Read a JSON object from ``path`` (plain or gzip), refusing files above ``limit`` bytes before reading them."""
+    source = source or str(path)
+    return json_object_from_bytes(read_file_bytes(path, limit=limit, source=source), limit=limit, source=source)
+
+
+def read_file_bytes(path: str | os.PathLike, *, limit: int, source: str | None = None) -> bytes:
+    """The bytes of the file ``path`` (a JSON file, plain or gzip), refused by size before reading (`read_capped`)."""
     path = Path(path)
     source = source or str(path)
     if path.is_dir():
         raise ResultsError(f"{source}: is a directory, not a JSON file")
-    data = read_capped(path, limit, source, lambda size: f"{source}: file is {'' if size is None else _megabytes(size) + ', '}"
+    return read_capped(path, limit, source, lambda size: f"{source}: file is {'' if size is None else _megabytes(size) + ', '}"
                        f"above the {_megabytes(limit)} limit; refusing to read it")
+
+
+def json_object_from_bytes(data: bytes, *, limit: int, source: str) -> dict:
+    """The JSON object in a file's bytes ``data`` (plain or gzip), with the checks of :func:`read_json_object`."""
     if data.startswith(GZIP_MAGIC):
         data = gunzip_capped(data, limit, source)
     try:

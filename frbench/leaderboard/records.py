@@ -43,7 +43,14 @@ from typing import Any, Iterator
 
 from frbench.errors import FrbenchError, ResultsError
 from frbench.io import atomic_write_bytes, sha256_text
-from frbench.leaderboard.jsonfile import MAX_RESULTS_BYTES, canonical_json, gzip_bytes, pretty_json, read_json_object
+from frbench.leaderboard.jsonfile import (
+    MAX_RESULTS_BYTES,
+    canonical_json,
+    gzip_bytes,
+    json_object_from_bytes,
+    pretty_json,
+    read_file_bytes,
+)
 from frbench.leaderboard.paths import RECORDS
 from frbench.leaderboard.results import check_results
 from frbench.leaderboard.scores import record_scores, track_of
@@ -232,9 +239,17 @@ def check_record(record: Any, *, file_name: str | None = None) -> None:
         )
 
 
-def load_record(path: Path) -> dict:
-    """Read (gzip or plain JSON) and fully check one record file; errors name the file."""
-    record = read_json_object(path, limit=MAX_RECORD_BYTES)
+def record_file_bytes(path: Path) -> bytes:
+    """The bytes of a record file, refused (one line naming it) above :data:`MAX_RECORD_BYTES`."""
+    return read_file_bytes(path, limit=MAX_RECORD_BYTES)
+
+
+def load_record(path: Path, data: bytes | None = None) -> dict:
+    """Read (gzip or plain JSON) and fully check one record file (or its bytes ``data``, already read); errors
+    name the file."""
+    if data is None:
+        data = record_file_bytes(path)
+    record = json_object_from_bytes(data, limit=MAX_RECORD_BYTES, source=str(path))
     try:
         check_record(record, file_name=path.name)
     except ResultsError as exc:

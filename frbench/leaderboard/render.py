@@ -26,11 +26,10 @@ from frbench.leaderboard.scores import (
     groups_of,
     overlaps,
     rank_key,
-    score_intervals,
-    generalisation,
     needs_unseen_grid,
     scored_cells,
 )
+from frbench.leaderboard.summaries import interval_views, record_generalisation, record_intervals
 from frbench.leaderboard.verify import RELATIVE_TOLERANCE
 from frbench.tasks.protocol import (
     KNOWN_PROTOCOL_VERSIONS,
@@ -167,8 +166,8 @@ def board(records: Sequence[Mapping], *, robot: str | None = None, backend: str 
             "inputs": inputs_of(record),
             "protocol_version": record["results"]["protocol_version"],
             "scores": scores,
-            "intervals": score_intervals(cells, robot=robot, backend=backend, terrain=terrain),
-            "generalisation": generalisation(record["results"]["cells"], record["track"]) if unfiltered else None,
+            "intervals": record_intervals(record, robot=robot, backend=backend, terrain=terrain),
+            "generalisation": record_generalisation(record) if unfiltered else None,
         })
     _rank(sections["main"])
     sections["partial"].sort(key=lambda row: rank_key(row["scores"], row["submitted"], row["id"]))
@@ -487,12 +486,7 @@ def page_data(records: Sequence[Mapping]) -> dict:
     """The JSON embedded in ``index.html``: per record, its (robot, backend, terrain, level) aggregates and provenance."""
     entries = []
     for record in sorted(records, key=lambda r: rank_key(r["scores"], r["submission"]["submitted"], r["id"])):
-        cells = scored_cells(record["results"]["cells"], record["track"])
-        groups = groups_of(cells)
-        intervals = {"": score_intervals(cells)}
-        for field, key in (("robot", "robot"), ("backend", "backend"), ("terrain", "family")):
-            for value in sorted({c[field] for c in cells}, key=str):
-                intervals[f"{key}={value}"] = score_intervals(cells, **{field: value})
+        groups = groups_of(scored_cells(record["results"]["cells"], record["track"]))
         entries.append({
             **_identity(record),
             "section": section_of(record),
@@ -500,8 +494,8 @@ def page_data(records: Sequence[Mapping]) -> dict:
             "protocol_version": record["results"]["protocol_version"],
             "episodes": record["scores"]["episodes"],
             "groups": [[*key, total, count] for key, (total, count) in groups.items()],
-            "generalisation": generalisation(record["results"]["cells"], record["track"]),
-            "intervals": intervals,
+            "generalisation": record_generalisation(record),
+            "intervals": interval_views(record),
             "provenance": {k: record["results"][k] for k in PROVENANCE_FIELDS},
         })
     return {
