@@ -717,7 +717,7 @@ def test_records_of_another_protocol_version_are_archived_not_ranked(tmp_path, c
     low, high = data["main"][0]["intervals"]["overall"]
     assert low < data["main"][0]["scores"]["overall"] < high
     readme = (root / "README.md").read_text()
-    assert "## Archived records (earlier protocol versions)" in readme and "| old-but-better | scripted | anonymous | 1.0 |" in readme
+    assert "## Archived records (earlier protocol versions, superseded records)" in readme and "| old-but-better | scripted | anonymous | 1.0 |" in readme
 
 
 def test_ranking_refuses_to_mix_protocol_versions():

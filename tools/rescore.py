@@ -191,12 +191,17 @@ def write_status(out: Path, jobs: list[Job], seconds: dict[str, float]) -> dict:
     return status
 
 
-def rescored_description(description: str, record: str) -> str:
-    """The original description, shortened with an ellipsis where needed, and what re-scored it, within the
-    board's limit of ``DESCRIPTION_MAX`` characters."""
+def protocol_suffix(record: str) -> str:
+    """What a record re-scored under protocol 1.2 says of its origin."""
+    return f"; re-scored under protocol 1.2 (standard and unseen grids) from record {record[:12]}"
+
+
+def rescored_description(description: str, record: str, origin=protocol_suffix) -> str:
+    """The original description, shortened with an ellipsis where needed, and what re-scored it (``origin(record)``),
+    within the board's limit of ``DESCRIPTION_MAX`` characters."""
     from frbench.leaderboard.records import DESCRIPTION_MAX
 
-    suffix = f"; re-scored under protocol 1.2 (standard and unseen grids) from record {record[:12]}"
+    suffix = origin(record)
     room = DESCRIPTION_MAX - len(suffix)
     text = description.strip()
     if len(text) > room:
@@ -204,8 +209,9 @@ def rescored_description(description: str, record: str) -> str:
     return text + suffix
 
 
-def submit_finished(out: Path, board: Path) -> int:
-    """Submit each finished results.json whose results are not on the board yet, with its policy file."""
+def submit_finished(out: Path, board: Path, origin=protocol_suffix) -> int:
+    """Submit each finished results.json whose results are not on the board yet, with its policy file; its
+    description ends with ``origin(source record id)``."""
     from frbench.leaderboard import board as lb
     from frbench.leaderboard.records import load_records
 
@@ -223,7 +229,7 @@ def submit_finished(out: Path, board: Path) -> int:
         source = meta["submission"]
         policy = meta["policy"]
         policy_file = policy if Path(policy.split(":")[0]).is_file() else None
-        description = rescored_description(source["description"], meta["record"])
+        description = rescored_description(source["description"], meta["record"], origin)
         done = lb.submit(results_path, board, name=source["name"], description=description,
                          submitter=source["submitter"], link=source.get("link"), policy_file=policy_file)
         print(f"submitted {source['name']}: record {done.record['id'][:12]} ({done.record['track']})")

@@ -182,6 +182,7 @@ def build_results(request: EvaluationRequest, policy, episodes: list[dict], code
             "checkpoint": str(checkpoint) if checkpoint else None,
             "sha256": sha256_file(checkpoint) if checkpoint else None,
             **({"inputs": policy.inputs} if getattr(policy, "inputs", None) else {}),
+            **({"joint_frame": "canonical"} if getattr(policy, "joint_frame", "robot") == "canonical" else {}),
         },
         "config": config,
         "robots": robots,

@@ -54,15 +54,18 @@ def _one_torch_thread() -> None:
         sys.modules["torch"].set_num_threads(1)
 
 
-def run_cell(cell: Cell, policy_reference: str, noise: bool = False) -> list[dict]:
-    """Run the cell's episodes with the policy (`run_episodes`); one record per episode."""
+def run_cell(cell: Cell, policy_reference: str, noise: bool = False, joint_frame: str | None = None) -> list[dict]:
+    """Run the cell's episodes with the policy (`run_episodes`); one record per episode. ``joint_frame``
+    (``robot`` / ``canonical``) overrides the frame the policy declares: `frbench verify` re-runs a record in
+    the frame its results name (absent: ``robot``)."""
     spec = get_robot(cell.robot)
     policy = _policy(policy_reference)
     _one_torch_thread()
     terrain = make_terrain(cell.terrain, cell.level, cell.seed)
     starts = draw_starts(spec, terrain, cell.terrain, cell.level, cell.seed, range(cell.episodes))
     noise_rng = np.random.default_rng([cell.seed, cell.level, 7]) if noise else None
-    task = run_episodes(spec, cell.backend, terrain, starts, policy, seed=cell.seed, noise_rng=noise_rng)
+    task = run_episodes(spec, cell.backend, terrain, starts, policy, seed=cell.seed, noise_rng=noise_rng,
+                        joint_frame=joint_frame)
     success, metrics = task.success, task.metrics
     diverged = metrics.diverged | task.settle_diverged
     base = {k: v for k, v in asdict(cell).items() if k != "episodes"}

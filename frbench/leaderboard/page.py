@@ -336,7 +336,8 @@ PAGE_SCRIPT = r"""
     document.getElementById("details-title").textContent = "Provenance: " + rec.name;
     var dl = el("dl");
     dlRow(dl, "Record", rec.id);
-    dlRow(dl, "Track", rec.section === "archived" ? "archived (protocol " + rec.protocol_version + ", not ranked against " + DATA.protocol + ")"
+    dlRow(dl, "Track", rec.superseded_by ? "archived (superseded by record " + rec.superseded_by.slice(0, 12) + ": the same policy file re-scored in the canonical joint frame)"
+                       : rec.section === "archived" ? "archived (protocol " + rec.protocol_version + ", not ranked against " + DATA.protocol + ")"
                        : rec.track === "main" ? "main board (standard grid)" : "partial");
     dlRow(dl, "Policy", rec.policy + (rec.inputs === "simulator-state"
       ? " (reads the simulator's state and the terrain: not a blind policy, never ranked with them)" : ""));

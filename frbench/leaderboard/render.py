@@ -119,10 +119,31 @@ def axes(records: Sequence[Mapping]) -> dict[str, list]:
     }
 
 
-def section_of(record: Mapping) -> str:
-    """``main`` / ``partial`` for records of the current protocol version, ``archived`` for any other version. A
-    policy that reads the simulator's state (`inputs_of`) is never ranked with blind policies: ``partial``."""
-    if record["results"]["protocol_version"] != PROTOCOL_VERSION:
+def superseded(records: Sequence[Mapping]) -> dict[str, str]:
+    """Record id → the id of the record that supersedes it: a current-protocol record of a learned policy run in
+    the robot's own joint frame, where a current-protocol record of the same policy file (its sha256) ran it in
+    the canonical frame (`frbench.robots.joint_frame`; docs/protocol.md, "The joint frame"). Each id keeps
+    meaning its own results; the superseded one moves to the archived section."""
+    canonical = {}
+    for record in records:
+        policy = record["results"]["policy"]
+        if (record["results"]["protocol_version"] == PROTOCOL_VERSION and policy.get("sha256")
+                and policy.get("joint_frame") == "canonical"):
+            canonical.setdefault(policy["sha256"], record["id"])
+    out = {}
+    for record in records:
+        policy = record["results"]["policy"]
+        if (record["results"]["protocol_version"] == PROTOCOL_VERSION and policy.get("joint_frame", "robot") == "robot"
+                and policy.get("sha256") in canonical):
+            out[record["id"]] = canonical[policy["sha256"]]
+    return out
+
+
+def section_of(record: Mapping, replaced: Mapping[str, str] | None = None) -> str:
+    """``main`` / ``partial`` for records of the current protocol version, ``archived`` for any other version and
+    for a record ``replaced`` names (`superseded`). A policy that reads the simulator's state (`inputs_of`) is
+    never ranked with blind policies: ``partial``."""
+    if record["results"]["protocol_version"] != PROTOCOL_VERSION or record["id"] in (replaced or {}):
         return "archived"
     return "partial" if inputs_of(record) == SIMULATOR_STATE else record["track"]
 
@@ -155,14 +176,16 @@ def board(records: Sequence[Mapping], *, robot: str | None = None, backend: str 
     Records without cells matching the filters are left out.
     """
     sections: dict[str, list[dict]] = {"main": [], "partial": [], "archived": []}
+    replaced = superseded(records)
     for record in records:
         cells = scored_cells(record["results"]["cells"], record["track"])
         scores = aggregate(groups_of(cells), robot=robot, backend=backend, terrain=terrain)
         if scores is None:
             continue
         unfiltered = robot is None and backend is None and terrain is None
-        sections[section_of(record)].append({
+        sections[section_of(record, replaced)].append({
             **_identity(record),
+            **({"superseded_by": replaced[record["id"]]} if record["id"] in replaced else {}),
             "inputs": inputs_of(record),
             "protocol_version": record["results"]["protocol_version"],
             "scores": scores,
@@ -259,7 +282,8 @@ SECTION_TITLES = {
             "(~: its 95 % interval overlaps the record above)",
     "partial": "Partial records, protocol {version} (not ranked against the main board)",
     "archived": "Archived: records of earlier protocol versions, ranked within their own version only "
-                "(never against protocol {version})",
+                "(never against protocol {version}), and records superseded by a re-score of the same policy file "
+                "in the canonical joint frame",
 }
 
 
@@ -385,7 +409,8 @@ def render_markdown(records: Sequence[Mapping]) -> str:
         for row in rows:
             s, iv = row["scores"], row["intervals"]
             state = " (simulator state)" if row["inputs"] == SIMULATOR_STATE else ""
-            values = [md_escape(row["name"]), md_escape(row["policy"]) + state, md_escape(row["submitter"])]
+            later = f" (superseded by {row['superseded_by'][:12]})" if row.get("superseded_by") else ""
+            values = [md_escape(row["name"]) + later, md_escape(row["policy"]) + state, md_escape(row["submitter"])]
             if protocol:
                 values.append(md_escape(row["protocol_version"]))
             if protocol or not ranked:
@@ -425,11 +450,14 @@ def render_markdown(records: Sequence[Mapping]) -> str:
     ]
     lines += table(data["partial"], False)
     lines += [
-        "## Archived records (earlier protocol versions)",
+        "## Archived records (earlier protocol versions, superseded records)",
         "",
         "Records evaluated under an earlier protocol. Their numbers mean something else (docs/protocol.md lists",
         f"what changed), so they are never ranked against protocol {PROTOCOL_VERSION}; records that covered that",
         "version's standard grid are ranked among themselves (`~`: interval overlaps the one above), the rest (`-`) not.",
+        f"A protocol {PROTOCOL_VERSION} record *superseded by* another ran a learned policy in each robot's own joint",
+        "convention; the record named re-scores the same policy file in the canonical joint frame (docs/protocol.md,",
+        "\"The joint frame\"). Each record id keeps meaning its own results.",
         "",
     ]
     lines += table(data["archived"], True, protocol=True)
@@ -485,11 +513,13 @@ def render_markdown(records: Sequence[Mapping]) -> str:
 def page_data(records: Sequence[Mapping]) -> dict:
     """The JSON embedded in ``index.html``: per record, its (robot, backend, terrain, level) aggregates and provenance."""
     entries = []
+    replaced = superseded(records)
     for record in sorted(records, key=lambda r: rank_key(r["scores"], r["submission"]["submitted"], r["id"])):
         groups = groups_of(scored_cells(record["results"]["cells"], record["track"]))
         entries.append({
             **_identity(record),
-            "section": section_of(record),
+            "section": section_of(record, replaced),
+            **({"superseded_by": replaced[record["id"]]} if record["id"] in replaced else {}),
             **({"inputs": SIMULATOR_STATE} if inputs_of(record) == SIMULATOR_STATE else {}),
             "protocol_version": record["results"]["protocol_version"],
             "episodes": record["scores"]["episodes"],

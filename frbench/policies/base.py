@@ -44,9 +44,9 @@ class Policy(Protocol):
         """Joint targets (N, n_joints) [rad] for the observation dict."""
 
 
-def policy_joint_frame(policy: Policy, spec: RobotSpec):
+def policy_joint_frame(policy: Policy, spec: RobotSpec, declared: str | None = None):
     """The `frbench.robots.joint_frame.JointFrame` that ``policy`` reads and writes ``spec``'s joints in, or None when it
-    uses the robot's own convention (``joint_frame`` absent or ``"robot"``).
+    uses the robot's own convention (``joint_frame`` absent or ``"robot"``); ``declared`` overrides the policy's.
 
     Raises:
         PolicyError: the policy declares ``"canonical"`` and ``spec`` has no canonical frame (a humanoid, a leg that is
@@ -54,7 +54,7 @@ def policy_joint_frame(policy: Policy, spec: RobotSpec):
     """
     from frbench.robots.joint_frame import JOINT_FRAMES, JointFrameError, joint_frame
 
-    declared = getattr(policy, "joint_frame", "robot")
+    declared = getattr(policy, "joint_frame", "robot") if declared is None else declared
     if declared not in JOINT_FRAMES:
         raise PolicyError(f"policy {policy.name!r}: joint_frame {declared!r}, expected one of {', '.join(JOINT_FRAMES)}")
     if declared == "robot":
