@@ -56,7 +56,7 @@ def test_a_record_made_in_the_robot_s_frame_verifies_in_it_and_the_canonical_fra
     recorded = _recorded(recorded_30m, *cell.key())
     assert run_cell(cell, str(FRNET_30M), joint_frame="robot") == recorded
     canonical = run_cell(cell, str(FRNET_30M))
-    assert sum(e["success"] for e in recorded) == 0 and sum(e["success"] for e in canonical) == 3
+    assert sum(e["success"] for e in recorded) == 0 and sum(e["success"] for e in canonical) == 1
 
 
 def test_the_onnx_export_carries_the_frame_and_scores_on_solo12_as_the_checkpoint(tmp_path):
@@ -68,8 +68,22 @@ def test_the_onnx_export_carries_the_frame_and_scores_on_solo12_as_the_checkpoin
     exported = [e for cell in cells for e in run_cell(cell, str(out))]
     checkpoint = [e for cell in cells for e in run_cell(cell, str(FRNET_30M))]
     assert [e["success"] for e in exported] == [e["success"] for e in checkpoint]
-    assert sum(e["success"] for e in checkpoint) >= 2
-    np.testing.assert_allclose([e["energy"] for e in exported], [e["energy"] for e in checkpoint], rtol=0.2)
+    assert sum(e["success"] for e in checkpoint) == 1
+    # the same targets on Solo12's joints, to float32 rounding (the checkpoint infers in float64, protocol 1.2)
+    from frbench.policies.base import policy_joint_frame
+    from frbench.policies.registry import load_policy
+    from frbench.robots import get_robot
+
+    spec, rng = get_robot("solo12"), np.random.default_rng(4)
+    obs = {"base_angvel": rng.normal(size=(4, 3)), "projected_gravity": np.tile([0.0, 0.0, 1.0], (4, 1)),
+           "joint_pos": rng.uniform(spec.joint_lower, spec.joint_upper, size=(4, 12)),
+           "joint_vel": rng.normal(size=(4, 12)), "previous_action": np.tile(spec.default_pose, (4, 1))}
+    targets = []
+    for policy in (load_policy(str(out)), load_policy(str(FRNET_30M))):
+        frame = policy_joint_frame(policy, spec)
+        policy.reset(frame.canonical_spec(spec), 4)
+        targets.append(frame.targets(policy.act(frame.observation(obs))))
+    np.testing.assert_allclose(targets[0], targets[1], atol=1e-5)
 
 
 def _refused(tmp_path, capsys, policy: str, robot: str) -> str:

@@ -103,10 +103,14 @@ def joint_frame_text(entry: dict, joint_names) -> list[str]:
     """The lines of ``frbench spec`` that show the canonical joint frame (or why there is none)."""
     if "reason" in entry:
         return ["", f"canonical joint frame: none ({entry['reason']})"]
-    lines = ["", "canonical joint frame (a policy with joint_frame 'canonical' sees canonical = sign * q + offset):",
-             "  knees: " + ", ".join(f"{leg} {way}" for leg, way in entry["knees"].items())]
+    lines = ["", "canonical joint frame (a policy with joint_frame 'canonical' sees canonical[j] = sign[j] * q[order[j]] "
+             "+ offset[j]):", "  knees: " + ", ".join(f"{leg} {way}" for leg, way in entry["knees"].items())
+             + ("; every knee points forward, so the robot is seen from behind (FL <-> RR, FR <-> RL, body x and y "
+                "negated)" if entry["turned"] else "")]
     for k, name in enumerate(joint_names):
-        lines.append(f"  {k:2d} {name:<24} sign {entry['sign'][k]:+.0f}  offset {entry['offset'][k]:7.3f} rad")
+        joint = entry["order"][k]
+        lines.append(f"  canonical {k:2d} = robot {joint:2d} {joint_names[joint]:<24} sign {entry['sign'][k]:+.0f}  "
+                     f"offset {entry['offset'][k]:7.3f} rad")
     return lines
 
 

@@ -46,14 +46,17 @@ class Policy(Protocol):
 
 def policy_joint_frame(policy: Policy, spec: RobotSpec, declared: str | None = None):
     """The `frbench.robots.joint_frame.JointFrame` that ``policy`` reads and writes ``spec``'s joints in, or None when it
-    uses the robot's own convention (``joint_frame`` absent or ``"robot"``); ``declared`` overrides the policy's.
+    uses the robot's own convention (``joint_frame`` absent or ``"robot"``); ``declared`` overrides the policy's
+    (a name, or a `JointFrame` itself, e.g. ``joint_frame(spec, turn=False)`` in a diagnosis).
 
     Raises:
         PolicyError: the policy declares ``"canonical"`` and ``spec`` has no canonical frame (a humanoid, a leg that is
             not hip-thigh-calf), or declares a value other than ``"robot"`` / ``"canonical"``.
     """
-    from frbench.robots.joint_frame import JOINT_FRAMES, JointFrameError, joint_frame
+    from frbench.robots.joint_frame import JOINT_FRAMES, JointFrame, JointFrameError, joint_frame
 
+    if isinstance(declared, JointFrame):
+        return declared
     declared = getattr(policy, "joint_frame", "robot") if declared is None else declared
     if declared not in JOINT_FRAMES:
         raise PolicyError(f"policy {policy.name!r}: joint_frame {declared!r}, expected one of {', '.join(JOINT_FRAMES)}")

@@ -109,7 +109,7 @@ class ScriptedPolicy:
     # ------------------------------------------------------------------ poses
     def _build_poses(self, spec: RobotSpec) -> None:
         """Every pose from the spec's limits and default pose (all (n_joints,) arrays), in canonical leg angles."""
-        frame = joint_frame(spec)
+        frame = joint_frame(spec, turn=False)  # its poses mirror each forward knee
         self.sign, self.offset = np.asarray(frame.sign), np.asarray(frame.offset)
         default = self.to_canonical(np.asarray(spec.default_pose, dtype=float))
         lower = self.to_canonical(np.asarray(spec.joint_lower, dtype=float))

@@ -15,9 +15,15 @@ at zero:
 
 `joint_frame` reads it from the robot's kinematics (the simulation URDF): per
 joint a sign s = ±1 and an offset o [rad] with ``canonical = s·q + o``, and
-per leg the knee direction. A leg whose standing knee points forward (Solo,
-ANYmal) is mirrored front to back (thigh and calf both flipped), which maps
-the fold-roll-stand motion of a backward-kneed leg onto it.
+per leg the knee direction. A robot whose four standing knees all point
+forward (Solo12, ANYmal B and C as frbench stands them) is *turned*: seen from
+behind, rotated 180° about its vertical axis, it is a robot whose knees point
+backwards, so the canonical frame takes that view: its front legs are the
+robot's hind legs (FL ↔ RR, FR ↔ RL), hip, thigh and calf turn the other way,
+and the body-frame x and y of the angular velocity and of gravity change sign.
+A robot with forward knees on some legs only has those legs mirrored front to
+back instead (thigh and calf flipped, no swap), which is also how `scripted`
+maps every forward knee (``turn=False``).
 
 A humanoid has no canonical frame: its legs are hip-pitch/roll/yaw, knee and
 ankle chains (and its arms are not legs), which the hip-thigh-calf convention
@@ -76,18 +82,27 @@ class JointFrame:
         robot: the robot's name.
         sign: ±1 per joint (n_joints,), canonical joint order.
         offset: [rad] per joint (n_joints,); zero where the leg hangs straight down at zero.
-        knees: per leg (FL, FR, RL, RR), ``"backward"`` or ``"forward"``: where the standing knee points.
+        knees: per leg of the robot (FL, FR, RL, RR), ``"backward"`` or ``"forward"``: where its standing knee points.
+        turned: the robot is seen from behind (its four knees point forward; module docstring): canonical joint j
+            is the robot's joint ``order[j]``.
     """
 
     robot: str
     sign: tuple[float, ...]
     offset: tuple[float, ...]
     knees: tuple[str, ...]
+    turned: bool = False
+
+    @property
+    def order(self) -> tuple[int, ...]:
+        """The robot's joint index of each canonical joint (n_joints,): FL ↔ RR and FR ↔ RL for a turned robot."""
+        n = len(self.sign)
+        return tuple((n - 3 - j + 2 * (j % 3)) if self.turned else j for j in range(n))
 
     @property
     def is_identity(self) -> bool:
         """True when the robot's convention already is the canonical one (every sign +1, every offset 0)."""
-        return all(s == 1.0 for s in self.sign) and not any(self.offset)
+        return not self.turned and all(s == 1.0 for s in self.sign) and not any(self.offset)
 
     def _arrays(self, like):
         """sign and offset as arrays in ``like``'s namespace and dtype (numpy, or torch on its device)."""
@@ -95,25 +110,37 @@ class JointFrame:
             return np.asarray(self.sign), np.asarray(self.offset)
         return (like.new_tensor(self.sign), like.new_tensor(self.offset))
 
+    def _reorder(self, values):
+        """(..., n_joints) values in the other joint order (robot ↔ canonical: the order is its own inverse)."""
+        return values[..., list(self.order)] if self.turned else values
+
     def to_canonical(self, q):
         """Robot joint angles [rad] (..., n_joints) as canonical leg angles (numpy or torch)."""
         sign, offset = self._arrays(q)
-        return sign * q + offset
+        return sign * self._reorder(q) + offset
 
     def to_joints(self, canonical):
         """Canonical leg angles [rad] (..., n_joints) as the robot's joint angles (inverse of `to_canonical`)."""
         sign, offset = self._arrays(canonical)
-        return sign * (canonical - offset)
+        return self._reorder(sign * (canonical - offset))
 
     def velocities(self, qd):
-        """Joint velocities [rad/s] (..., n_joints), robot ↔ canonical (the same map both ways: sign · q̇)."""
+        """Joint velocities [rad/s] (..., n_joints), robot → canonical: sign · q̇ in canonical order."""
         sign, _ = self._arrays(qd)
-        return sign * qd
+        return sign * self._reorder(qd)
+
+    def body_vectors(self, v):
+        """Body-frame vectors (..., 3) (angular velocity, gravity direction) in the canonical body frame: x and y
+        negated for a turned robot, unchanged otherwise."""
+        if not self.turned:
+            return v
+        flip = np.array([-1.0, -1.0, 1.0]) if isinstance(v, np.ndarray) else v.new_tensor([-1.0, -1.0, 1.0])
+        return v * flip
 
     def observation(self, obs: dict) -> dict:
         """The proprioception dict (`frbench.tasks.observations`) in the canonical frame: ``joint_pos`` and
-        ``previous_action`` (targets [rad]) through `to_canonical`, ``joint_vel`` through `velocities`; the other
-        keys as they are. The identity frame returns ``obs`` itself."""
+        ``previous_action`` (targets [rad]) through `to_canonical`, ``joint_vel`` through `velocities`,
+        ``base_angvel`` and ``projected_gravity`` through `body_vectors`. The identity frame returns ``obs`` itself."""
         if self.is_identity:
             return obs
         mapped = dict(obs)
@@ -122,6 +149,9 @@ class JointFrame:
                 mapped[key] = self.to_canonical(obs[key])
         if "joint_vel" in obs:
             mapped["joint_vel"] = self.velocities(obs["joint_vel"])
+        for key in ("base_angvel", "projected_gravity"):
+            if key in obs:
+                mapped[key] = self.body_vectors(obs[key])
         return mapped
 
     def targets(self, canonical):
@@ -131,20 +161,25 @@ class JointFrame:
 
     def canonical_spec(self, spec: RobotSpec) -> RobotSpec:
         """``spec`` as a canonical-frame policy sees it: default pose and joint limits in canonical leg angles
-        (a limit pair whose sign flips swaps ends); everything else unchanged. The identity frame returns ``spec``."""
+        (a limit pair whose sign flips swaps ends), joint names, gains and torque limits in canonical joint order;
+        everything else unchanged. The identity frame returns ``spec``."""
         if self.is_identity:
             return spec
         lower = self.to_canonical(np.asarray(spec.joint_lower, dtype=float))
         upper = self.to_canonical(np.asarray(spec.joint_upper, dtype=float))
+        order = list(self.order)
+        reordered = {name: tuple(getattr(spec, name)[k] for k in order) for name in
+                     ("joint_names", "kp", "kd", "torque_limits")}
         return dataclasses.replace(
             spec, default_pose=tuple(float(v) for v in self.to_canonical(np.asarray(spec.default_pose, dtype=float))),
             joint_lower=tuple(float(v) for v in np.minimum(lower, upper)),
-            joint_upper=tuple(float(v) for v in np.maximum(lower, upper)))
+            joint_upper=tuple(float(v) for v in np.maximum(lower, upper)), **reordered)
 
     def to_dict(self) -> dict:
         """JSON form (``frbench spec --json``)."""
-        return {"convention": "canonical = sign * q + offset", "sign": list(self.sign),
-                "offset": list(self.offset), "knees": dict(zip(QUADRUPED_LEGS, self.knees))}
+        return {"convention": "canonical[j] = sign[j] * q[order[j]] + offset[j]", "sign": list(self.sign),
+                "offset": list(self.offset), "order": list(self.order), "turned": self.turned,
+                "knees": dict(zip(QUADRUPED_LEGS, self.knees))}
 
 
 def _leg_axis_signs(tree, zero, spec: RobotSpec, joints: tuple[int, int, int]) -> list[float]:
@@ -164,13 +199,14 @@ def _leg_axis_signs(tree, zero, spec: RobotSpec, joints: tuple[int, int, int]) -
     return signs
 
 
-def joint_frame(spec: RobotSpec) -> JointFrame:
+def joint_frame(spec: RobotSpec, turn: bool = True) -> JointFrame:
     """The canonical joint frame of quadruped ``spec`` (module docstring).
 
     Axis directions are read from the simulation URDF; the offsets are the segment directions at the default
     pose (hips at zero) minus the joint angles there, so a file whose zero pose is not a straight leg (Spirit
     and Vision60 fold their legs at zero, Laikago's toe files bend them) maps onto the same canonical angles
-    as one whose zero pose is. Offsets below `OFFSET_TOLERANCE` are zero.
+    as one whose zero pose is. Offsets below `OFFSET_TOLERANCE` are zero. ``turn``: a robot whose four knees
+    point forward is turned around (module docstring); False mirrors each such leg instead (`scripted`).
 
     Raises:
         JointFrameError: ``spec`` is not a 12-joint quadruped (`HUMANOID_REASON` for a humanoid), or a leg's
@@ -203,7 +239,12 @@ def joint_frame(spec: RobotSpec) -> JointFrame:
         knees.append("backward" if mirror > 0 else "forward")
         sign[hip], sign[thigh], sign[calf] = axes[0], axes[1] * mirror, axes[2] * mirror
         offset[thigh], offset[calf] = mirror * offsets[0], mirror * offsets[1]
-    return JointFrame(spec.name, tuple(float(s) for s in sign), tuple(float(o) + 0.0 for o in offset), tuple(knees))  # no -0.0
+    turned = turn and all(k == "forward" for k in knees)
+    if turned:  # seen from behind: canonical leg k is robot leg 3 - k, every axis turned (mirror and hips)
+        legs = np.reshape(sign, (4, 3))[::-1] * np.array([-1.0, 1.0, 1.0])
+        sign, offset = legs.reshape(-1), np.reshape(offset, (4, 3))[::-1].reshape(-1)
+    return JointFrame(spec.name, tuple(float(s) for s in sign), tuple(float(o) + 0.0 for o in offset),  # no -0.0
+                      tuple(knees), turned)
 
 
 def learner_joint_frame(kind: str, residual: bool) -> str:
