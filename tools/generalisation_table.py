@@ -11,6 +11,10 @@ from). Every number is computed by `frbench.leaderboard.scores`, as the board co
     python tools/generalisation_table.py                 # the current protocol's main board
     python tools/generalisation_table.py --standard --against 1.1
     python tools/generalisation_table.py --per-robot
+    python tools/generalisation_table.py --per-robot --superseded   # the same in each robot's own joint frame
+
+Records superseded by a re-score in the canonical joint frame (`frbench.leaderboard.render.superseded`) are left
+out, as the board leaves them out of its ranking; ``--superseded`` prints them alone.
 """
 
 from __future__ import annotations
@@ -114,9 +118,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--standard", action="store_true", help="print the standard grid's table")
     parser.add_argument("--per-robot", action="store_true", help="print the success per unseen robot")
     parser.add_argument("--against", default="1.1", help="with --standard: the protocol to compare with (default 1.1)")
+    parser.add_argument("--superseded", action="store_true",
+                        help="the records a canonical-joint-frame re-score superseded (the robot's frame) instead")
     args = parser.parse_args(argv)
+    from frbench.leaderboard.render import superseded
+
     every = load_records(args.root)
-    records = [r for r in every if r["track"] == "main" and r["results"]["protocol_version"] == args.protocol]
+    replaced = superseded(every)
+    records = [r for r in every if r["track"] == "main" and r["results"]["protocol_version"] == args.protocol
+               and (r["id"] in replaced) == args.superseded]
     records.sort(key=lambda r: rank_key(r["scores"], r["submission"]["submitted"], r["id"]))
     if args.standard:
         earlier = {r["submission"]["name"]: r for r in every
