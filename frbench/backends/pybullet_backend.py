@@ -36,6 +36,7 @@ from frbench.backends.base import (
     summarize_contacts,
 )
 from frbench.backends.bullet import BulletClient, pybullet as p
+from frbench.portable_products import transposed_times, unit
 from frbench.robots.sim_urdf import self_collision_exclusions, sim_robot_file
 from frbench.robots.spec import RobotSpec
 from frbench.terrains import make_terrain
@@ -80,7 +81,7 @@ def _matrix_to_wxyz(rot: np.ndarray) -> np.ndarray:
     y = np.copysign(np.sqrt(max(0.0, 1.0 - rot[0, 0] + rot[1, 1] - rot[2, 2])) / 2, rot[0, 2] - rot[2, 0])
     z = np.copysign(np.sqrt(max(0.0, 1.0 - rot[0, 0] - rot[1, 1] + rot[2, 2])) / 2, rot[1, 0] - rot[0, 1])
     quat = np.array([w, x, y, z])
-    return quat / np.linalg.norm(quat)
+    return unit(quat)
 
 
 class _Simulation:
@@ -168,7 +169,7 @@ class PybulletBackend:
         for row, i in enumerate(np.asarray(ids, dtype=int)):
             sim = self.sims[i]
             c = sim.client
-            w, x, y, z = state.base_quat[row] / np.linalg.norm(state.base_quat[row])
+            w, x, y, z = unit(state.base_quat[row])
             orn = [x, y, z, w]
             pos, com_orn = c.multiplyTransforms(state.base_pos[row].tolist(), orn, sim.inertial_pos.tolist(), sim.inertial_orn)
             c.resetBasePositionAndOrientation(sim.robot, pos, com_orn)
@@ -220,7 +221,7 @@ class PybulletBackend:
             out.base_pos[i] = pos
             out.base_quat[i] = _matrix_to_wxyz(rot)
             out.base_linvel[i] = np.asarray(v_com) + _cross(omega, pos - np.asarray(com_pos))
-            out.base_angvel[i] = rot.T @ omega
+            out.base_angvel[i] = transposed_times(rot, omega)
             out.q[i], out.qd[i] = _joint_arrays(p.getJointStates(sim.robot, sim.joints, physicsClientId=cid))
         return out
 

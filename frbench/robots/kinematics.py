@@ -9,11 +9,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from frbench.portable_products import unit
 from frbench.robots.urdf_tree import UrdfTree
 
 
 def _axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
-    axis = axis / np.linalg.norm(axis)
+    axis = unit(axis)
     x, y, z = axis
     c, s, t = np.cos(angle), np.sin(angle), 1 - np.cos(angle)
     return np.array(
@@ -44,7 +45,7 @@ def link_poses(tree: UrdfTree, q: dict[str, float]) -> dict[str, np.ndarray]:
             if joint.type in ("revolute", "continuous"):
                 motion[:3, :3] = _axis_rotation(joint.axis, angle)
             elif joint.type == "prismatic":
-                motion[:3, 3] = joint.axis / np.linalg.norm(joint.axis) * angle
+                motion[:3, 3] = unit(joint.axis) * angle
             poses[joint.child] = poses[parent] @ local @ motion
             pending.append(joint.child)
     return poses
@@ -52,7 +53,7 @@ def link_poses(tree: UrdfTree, q: dict[str, float]) -> dict[str, np.ndarray]:
 
 def _axis_rotations(axis: np.ndarray, angles: np.ndarray) -> np.ndarray:
     """Rotation matrices (N, 3, 3) about ``axis`` by ``angles`` (N,) (Rodrigues)."""
-    x, y, z = axis / np.linalg.norm(axis)
+    x, y, z = unit(axis)
     k = np.array([[0, -z, y], [z, 0, -x], [-y, x, 0]])
     s, c = np.sin(angles)[:, None, None], np.cos(angles)[:, None, None]
     return np.eye(3) + s * k + (1 - c) * (k @ k)
@@ -70,7 +71,7 @@ def chain_poses_batch(tree: UrdfTree, link: str, q: dict[str, np.ndarray]) -> di
         if joint.type in ("revolute", "continuous"):
             motion[:, :3, :3] = _axis_rotations(joint.axis, angle)
         elif joint.type == "prismatic":
-            motion[:, :3, 3] = (joint.axis / np.linalg.norm(joint.axis))[None] * angle[:, None]
+            motion[:, :3, 3] = unit(joint.axis)[None] * angle[:, None]
         poses[child] = poses[parent] @ joint.origin @ motion
     return poses
 

@@ -33,6 +33,7 @@ import numpy as np
 
 from frbench.errors import RobotFileError
 from frbench.io import atomic_write_text, sha256_file, sha256_text
+from frbench.portable_products import transposed_times
 from frbench.robots.mesh_vertices import binary_stl_vertices, text_mesh_vertices
 from frbench.robots.paths import cache_dir
 from frbench.robots.spec import RobotSpec
@@ -296,7 +297,7 @@ def _trim_shins(tree: UrdfTree, feet) -> None:
             if box.kind not in ("box", "cylinder"):
                 continue
             rot, pos = box.origin[:3, :3], box.origin[:3, 3]
-            local = rot.T @ (centre - pos)
+            local = transposed_times(rot, centre - pos)
             axis = int(np.argmax(box.size)) if box.kind == "box" else 2
             half = (box.size[axis] if box.kind == "box" else box.size[1]) / 2
             end = np.sign(local[axis]) * half  # the box end on the foot's side

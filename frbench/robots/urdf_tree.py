@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from frbench.errors import RobotFileError
+from frbench.portable_products import dot, norm
 from frbench.robots.paths import resolve_mesh
 
 MOVING_TYPES = ("revolute", "continuous", "prismatic")
@@ -237,7 +238,7 @@ def _parse_joint(element: ET.Element, label: str, links: dict[str, Link]) -> Joi
             raise RobotFileError(f"{where}: refers to link {end!r}, which the file does not define")
     axis_el = element.find("axis")
     axis = np.array(_floats(axis_el.get("xyz") if axis_el is not None else None, 3, f"{where} axis", (1, 0, 0)))
-    if jtype in MOVING_TYPES and np.linalg.norm(axis) < 1e-9:
+    if jtype in MOVING_TYPES and norm(axis) < 1e-9:
         raise RobotFileError(f"{where}: zero joint axis")
     joint = Joint(name, jtype, parent.get("link"), child.get("link"), _origin(element.find("origin"), where), axis)
     limit = element.find("limit")
@@ -310,7 +311,7 @@ def _combine(a_mass, a_com, a_inertia, b_mass, b_com, b_inertia):
     total = np.zeros((3, 3))
     for m, c, inertia in ((a_mass, a_com, a_inertia), (b_mass, b_com, b_inertia)):
         d = c - com
-        total += inertia + m * (np.dot(d, d) * np.eye(3) - np.outer(d, d))
+        total += inertia + m * (dot(d, d) * np.eye(3) - np.outer(d, d))
     return mass, com, total
 
 

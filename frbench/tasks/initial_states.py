@@ -23,6 +23,7 @@ import numpy as np
 
 from frbench.backends.base import RobotState
 from frbench.backends.self_collision import self_intersects
+from frbench.portable_products import unit
 from frbench.robots.sim_urdf import sim_robot_file
 from frbench.robots.spec import RobotSpec
 from frbench.robots.urdf_tree import parse_urdf
@@ -112,7 +113,7 @@ def _axis_quat(axis: int, angle: float) -> np.ndarray:
 
 def quat_to_matrix(quat: np.ndarray) -> np.ndarray:
     """Rotation matrix (3, 3) of a unit quaternion (w, x, y, z)."""
-    w, x, y, z = quat / np.linalg.norm(quat)
+    w, x, y, z = unit(quat)
     return np.array([
         [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
         [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
@@ -129,7 +130,7 @@ def fall_orientation(kind: str, robot_kind: str, yaw: float, rng: np.random.Gene
     """
     if kind == "random":
         quat = rng.normal(size=4)
-        return quat / np.linalg.norm(quat)
+        return unit(quat)
     lying = {
         ("quadruped", "supine"): _axis_quat(0, np.pi),
         ("quadruped", "prone"): _axis_quat(0, 0.0),

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from frbench.portable_products import norm, unit
 from frbench.robots.urdf_tree import UrdfTree
 
 #: Corner signs of a box, in `frbench.robots.kinematics.lowest_point`'s order (8, 3).
@@ -39,9 +40,9 @@ class StartGeometry:
             for joint in tree.child_joints(parent):
                 kind = {"revolute": "rotate", "continuous": "rotate", "prismatic": "slide"}.get(joint.type, "fixed")
                 if kind == "rotate":
-                    axis = tuple(float(v) for v in joint.axis / np.linalg.norm(joint.axis))
+                    axis = tuple(float(v) for v in unit(joint.axis))
                 else:
-                    axis = joint.axis / np.linalg.norm(joint.axis)
+                    axis = unit(joint.axis)
                 self.chain.append((parent, joint.child, joint.origin, kind, axis, column.get(joint.name, -1)))
                 pending.append(joint.child)
         self.root = tree.root
@@ -113,7 +114,5 @@ def _rotation4(axis: tuple[float, float, float], angle) -> np.ndarray:
 
 
 def _planar_norm(pose: np.ndarray):
-    """|(x, y)| of a transform's translation: ``np.linalg.norm(pose[:2, 3])`` (a contiguous copy, its dot with
-    itself, the square root)."""
-    xy = pose[:2, 3].ravel(order="K")
-    return np.sqrt(xy.dot(xy))
+    """|(x, y)| [m] of a transform's translation (`frbench.portable_products.norm`)."""
+    return norm(pose[:2, 3])
