@@ -44,7 +44,7 @@ ROBOT_BODY_RGBA, ROBOT_LIMB_RGBA = (0.78, 0.80, 0.83, 1.0), (0.22, 0.23, 0.25, 1
 #: Two tones that neighbouring terrain boxes alternate between (scaled by height).
 TERRAIN_TONES = ((0.95, 0.74, 0.47), (0.62, 0.76, 0.92))
 #: Backend name → the simulator's name as captions write it.
-SIMULATOR_LABELS = {"mujoco": "MuJoCo", "pybullet": "PyBullet"}
+SIMULATOR_LABELS = {"mujoco": "MuJoCo", "pybullet": "PyBullet", "physx": "PhysX"}
 
 
 def use_headless_gl() -> None:

@@ -31,7 +31,7 @@ MESSAGES = [
     (lambda r: r["policy"].__setitem__("sha256", "xyz"), "policy.sha256: 'xyz' does not match the pattern ^[0-9a-f]{64}$"),
     (lambda r: r["cells"][0].__setitem__("mean_time_to_recover", "a"),
      "cells[0].mean_time_to_recover: expected number or null, got string"),
-    (lambda r: r["config"].__setitem__("backends", ["mujoco", "ode"]), "config.backends[1]: 'ode' is not one of 'mujoco', 'pybullet', 'mujoco-warp'"),
+    (lambda r: r["config"].__setitem__("backends", ["mujoco", "ode"]), "config.backends[1]: 'ode' is not one of 'mujoco', 'pybullet', 'mujoco-warp', 'physx'"),
     (lambda r: r.__setitem__("schema_version", 2), "schema_version: must be 1, got 2"),
     (lambda r: r["config"].__setitem__("extra", float("inf")), "config.extra: inf is not allowed (numbers must be finite)"),
     (lambda r: r["config"].__setitem__("robots", []), "config.robots: has 0 items, fewer than the minimum 1"),

@@ -78,7 +78,7 @@ def test_each_part_of_the_split_matches_its_backend_run_alone():
 
 
 def test_an_unknown_backend_names_the_split_among_the_choices():
-    with pytest.raises(UnknownNameError, match=r"known: mujoco, mujoco\+pybullet, mujoco-warp, pybullet"):
+    with pytest.raises(UnknownNameError, match=r"known: mujoco, mujoco\+pybullet, mujoco-warp, physx, pybullet"):
         make_backend("mujoco+bullet", get_robot("go2"), 2)
 
 

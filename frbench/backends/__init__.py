@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
-from frbench.backends.simulators import BACKENDS, backend_class, make_simulator
+from frbench.backends.simulators import BACKENDS, backend_class, make_simulator, simulator_refusal
 from frbench.backends.split import SPLIT_NAME, SplitBackend
 from frbench.errors import unknown_name
 
-__all__ = ["BACKENDS", "backend_class", "make_backend", "simulator_parts", "training_backend_names"]
+__all__ = ["BACKENDS", "backend_class", "make_backend", "simulator_parts", "simulator_refusal",
+           "training_backend_names"]
 
 
 def training_backend_names() -> tuple[str, ...]:

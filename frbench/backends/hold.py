@@ -27,17 +27,19 @@ class HeldPose:
 
 
 def hold_default_pose(spec: RobotSpec, backend_name: str, seconds: float, tail_steps: int = 1,
-                      params: PhysicsParams | None = None) -> HeldPose:
+                      params: PhysicsParams | None = None, start: RobotState | None = None,
+                      terrain=None) -> HeldPose:
     """Start ``spec`` upright at its default pose over flat ground in ``backend_name`` and hold the pose with its PD
     for ``seconds``; the root height of each of the last ``tail_steps`` control steps. ``params``: the physics
-    (gains, friction, ...) for one environment (None: the robot's nominal)."""
-    backend = make_backend(backend_name, spec, 1)
+    (gains, friction, ...) for one environment (None: the robot's nominal); ``start``: another start (one
+    simulation, e.g. a drop from higher up or on the side); ``terrain``: another terrain than flat ground."""
+    backend = make_backend(backend_name, spec, 1, terrain=terrain)
     steps = int(round(seconds / CONTROL_DT))
     heights = []
     try:
         if params is not None:
             backend.set_params(params)
-        backend.reset(np.arange(1), RobotState.standing(spec, 1))
+        backend.reset(np.arange(1), RobotState.standing(spec, 1) if start is None else start)
         targets = np.asarray(spec.default_pose)[None]
         for step in range(steps):
             backend.step(targets)

@@ -30,12 +30,12 @@ from frbench.backends.base import (
     PhysicsParams,
     RobotState,
     actuator_torque,
-    check_base_force,
     check_targets,
     divergence_mask,
     summarize_contacts,
 )
 from frbench.backends.bullet import BulletClient, pybullet as p
+from frbench.backends.explicit_pd import ExplicitPdBatch
 from frbench.portable_products import transposed_times, unit
 from frbench.robots.sim_urdf import self_collision_exclusions, sim_robot_file
 from frbench.robots.spec import RobotSpec
@@ -123,7 +123,7 @@ class _Simulation:
         self.diverged = False
 
 
-class PybulletBackend:
+class PybulletBackend(ExplicitPdBatch):
     """N PyBullet simulations of ``spec`` on ``terrain``. See `frbench.backends.base.Backend`."""
 
     name = "pybullet"
@@ -140,13 +140,7 @@ class PybulletBackend:
         self.sims = [
             _Simulation(specs[k], str(sim_robot_file(specs[k]).path), self.terrain, self.link_names) for k in assignment
         ]
-        self.diverged = np.zeros(self.num_envs, dtype=bool)
-        self._tau = np.zeros((self.num_envs, spec.n_joints))
-        self._base_force = np.zeros((self.num_envs, 3))
-        self._limits = np.asarray(spec.torque_limits)
-        self._state: RobotState | None = None
-        self._masses: np.ndarray | None = None  # (N, n_links) [kg], read again after set_params
-        self.params = PhysicsParams.nominal(spec, self.num_envs)
+        self._init_batch(spec, self.num_envs)
 
     # ------------------------------------------------------------------ params
     def set_params(self, params: PhysicsParams) -> None:
@@ -158,10 +152,6 @@ class PybulletBackend:
             sim.client.changeDynamics(sim.robot, -1, mass=float(sim.base_mass + payload[i]))
         self.params = params
         self._masses = None
-
-    def set_base_force(self, force: np.ndarray) -> None:
-        """A force [N] (N, 3), world frame, on each root link's centre of mass during every later physics step."""
-        self._base_force = check_base_force(force, self.num_envs)
 
     # ------------------------------------------------------------------ state
     def reset(self, ids, state: RobotState) -> None:
@@ -202,8 +192,7 @@ class PybulletBackend:
                     p.applyExternalForce(robot, -1, force, base, p.WORLD_FRAME, physicsClientId=cid)
                 p.stepSimulation(physicsClientId=cid)
             self._tau[i] = tau
-        self._state = self._read_state()
-        self.diverged |= divergence_mask(self._state)
+        self._finish_step()
 
     def _read_state(self) -> RobotState:
         n, nj = self.num_envs, self.spec.n_joints
@@ -224,12 +213,6 @@ class PybulletBackend:
             out.base_angvel[i] = transposed_times(rot, omega)
             out.q[i], out.qd[i] = _joint_arrays(p.getJointStates(sim.robot, sim.joints, physicsClientId=cid))
         return out
-
-    def state(self) -> RobotState:
-        """State of every simulation in frbench's conventions (a copy)."""
-        if self._state is None:
-            self._state = self._read_state()
-        return self._state.copy()
 
     def _link_masses(self) -> np.ndarray:
         """(N, n_links) link masses [kg] as Bullet holds them, links in ``link_names`` order."""

@@ -1,5 +1,5 @@
-"""The simulators frbench runs (MuJoCo, PyBullet, MuJoCo Warp): name → backend class, each imported on first
-use (``mujoco-warp`` needs the ``gpu`` extra)."""
+"""The simulators frbench runs (MuJoCo, PyBullet, MuJoCo Warp, PhysX): name → backend class, each imported on
+first use (``mujoco-warp`` needs the ``gpu`` extra, ``physx`` the ``physx`` extra)."""
 
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ BACKENDS = {
     "mujoco": "frbench.backends.mujoco_backend:MujocoBackend",
     "pybullet": "frbench.backends.pybullet_backend:PybulletBackend",
     "mujoco-warp": "frbench.backends.mujoco_warp_backend:MujocoWarpBackend",
+    "physx": "frbench.backends.physx_backend:PhysxBackend",
 }
 
 
@@ -30,3 +31,10 @@ def make_simulator(name: str, spec, num_envs: int, terrain=None, variants=None):
     if variants is None:
         return cls(spec, num_envs, terrain=terrain)
     return cls(spec, num_envs, terrain=terrain, variants=variants)
+
+
+def simulator_refusal(name: str, spec) -> str | None:
+    """Why simulator ``name`` cannot take robot ``spec`` (its backend class's ``refusal``, e.g. PhysX's limits on
+    self-collision groups), or None when it can."""
+    refusal = getattr(backend_class(name), "refusal", None)
+    return refusal(spec) if refusal is not None else None

@@ -1,14 +1,16 @@
 """Turn a :class:`~frbench.terrains.geometry.Terrain` into simulator geometry.
 
-This is the only code that does so; both backends call it, so MuJoCo and
-PyBullet get the same boxes (same centres, half extents and quaternions) and
-the same floor plane.
+This is the only code that does so; every backend calls it, so MuJoCo,
+PyBullet and PhysX get the same boxes (same centres, half extents and
+quaternions) and the same floor plane.
 
 Friction: MuJoCo takes the contact friction from the geom with the higher
 ``priority``; the terrain's geoms have priority 1 (robot geoms keep 0), so
 every robot–terrain contact uses (friction, 0.005, 0.0001). PyBullet multiplies
 the two bodies' lateral friction coefficients; robot links are set to 1.0 by
-the backend, so the product is the terrain's value.
+the backend, so the product is the terrain's value. PhysX averages the two
+materials' coefficients; the PhysX backend gives robot and terrain one shared
+material, so the average is the terrain's value.
 """
 
 from __future__ import annotations
@@ -148,3 +150,33 @@ def add_to_bullet(client, terrain: Terrain, friction: float) -> list[int]:
             body, -1, lateralFriction=friction, restitution=0.0, rollingFriction=0.0, spinningFriction=0.0
         )
     return bodies
+
+
+def add_to_physx(scene, terrain: Terrain, material) -> list:
+    """Add the terrain to a SAPIEN scene as static actors (PhysX).
+
+    The floor is PhysX's infinite plane at ``terrain.floor_z`` (``scene.add_ground``); the boxes are box shapes of
+    one static actor, in ``terrain.boxes`` order.
+
+    Args:
+        scene: a ``sapien.Scene`` with a PhysX system.
+        terrain: the terrain.
+        material: the ``sapien.physx.PhysxMaterial`` of every terrain shape (its friction is the contact's:
+            see the module docstring).
+
+    Returns:
+        the actors' entities: the floor first, then the boxes' actor (when there are boxes).
+    """
+    from frbench.backends.physx_scene import import_sapien
+
+    sapien = import_sapien()
+    entities = [scene.add_ground(terrain.floor_z, render=False, material=material)]
+    if terrain.boxes:
+        builder = scene.create_actor_builder()
+        for box in terrain.boxes:
+            builder.add_box_collision(sapien.Pose(list(box.center), list(box.quat_wxyz())), list(box.half_extents),
+                                      material=material)
+        builder.set_physx_body_type("static")
+        builder.set_name("terrain_boxes")
+        entities.append(builder.build())
+    return entities

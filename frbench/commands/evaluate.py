@@ -37,7 +37,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "(the five training-distribution quadrupeds, 840 cells), unseen (real quadrupeds no policy trains on, "
                    "576 cells, + the humanoid set for a humanoid policy) or standard,unseen (docs/protocol.md)")
     p.add_argument("--robots", type=_list, default=None, help="comma-separated robot names or URDF paths (default go2)")
-    p.add_argument("--backends", type=_list, default=None, help="mujoco,pybullet (mujoco-warp with the gpu extra)")
+    p.add_argument("--backends", type=_list, default=None, help="mujoco,pybullet (mujoco-warp with the gpu extra, physx "
+                   "with the physx extra)")
     p.add_argument("--terrains", type=_list, default=None, help="terrain families (default: all seven)")
     p.add_argument("--levels", type=_ints, default=None, help="difficulty levels 1-10 (default 1,5,10)")
     p.add_argument("--seeds", type=_ints, default=None, help="evaluation seeds (default 0,1)")
@@ -93,6 +94,9 @@ def run(args) -> int:
     cells = request.cells()
     for name, reason in request.not_scored.items():
         print(f"frbench evaluate: robot {name!r} of the grid is not scored: {reason}", file=sys.stderr)
+    for backend, robots in request.refused.items():
+        for name, reason in robots.items():
+            print(f"frbench evaluate: robot {name!r} does not run in {backend}: {reason}", file=sys.stderr)
     print(
         f"frbench evaluate: policy {policy.name!r}{' on the ' + '+'.join(grid) + ' grid' if grid else ''}, "
         f"{len(cells)} cells x {request.episodes} episodes "
@@ -112,4 +116,6 @@ def run(args) -> int:
     atomic_write_text(out, json.dumps(results, indent=1) + "\n")
     total = sum(c["successes"] for c in results["cells"])
     print(f"\n{total}/{len(episodes)} episodes succeeded. Results written to {out}")
+    if request.refused:  # the other cells ran; the command still reports the robots a simulator refused
+        return 2
     return 0

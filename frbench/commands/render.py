@@ -13,7 +13,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("render", help="write a GIF/MP4 of one evaluation episode")
     p.add_argument("--policy", default="scripted", help="policy name, checkpoint or run folder")
     p.add_argument("--robot", default="go2", help="robot name or URDF path")
-    p.add_argument("--backend", default="mujoco", help="simulator that runs the episode (mujoco or pybullet)")
+    p.add_argument("--backend", default="mujoco",
+                   help="simulator that runs the episode (mujoco, pybullet; physx with the physx extra)")
     p.add_argument("--terrain", default="flat", help="terrain family")
     p.add_argument("--level", type=int, default=1, help="difficulty level 1-10")
     p.add_argument("--seed", type=int, default=0, help="evaluation seed")

@@ -18,6 +18,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     check.add_argument("robot", help="robot name or path to a URDF")
     check.add_argument("--json", action="store_true", help="machine-readable output")
     check.add_argument("--seed", type=int, default=0, help="seed of the random configurations")
+    check.add_argument("--backends", default="mujoco,pybullet", help="comma-separated simulators to check in "
+                       "(default mujoco,pybullet; physx with the physx extra)")
     check.set_defaults(func=run_check)
     add = robot_sub.add_parser("add", help="register a URDF persistently for this user")
     add.add_argument("urdf", help="path to the URDF (a <stem>.frbench.toml sidecar beside it is read)")
@@ -78,10 +80,16 @@ def run_list(args) -> int:
 
 def run_check(args) -> int:
     """Run the conformance check; exit 1 when it fails."""
+    from frbench.backends import BACKENDS
+    from frbench.errors import unknown_name
     from frbench.robot_checks.check import check_robot
     from frbench.robot_checks.lookup import get_robot
 
-    report = check_robot(get_robot(args.robot), seed=args.seed)
+    backends = tuple(name.strip() for name in args.backends.split(",") if name.strip())
+    for name in backends:
+        if name not in BACKENDS:
+            raise unknown_name("backend", name, BACKENDS)
+    report = check_robot(get_robot(args.robot), seed=args.seed, backends=backends)
     if args.json:
         print(json.dumps(report.as_dict(), indent=2))
         return 0 if report.ok else 1

@@ -14,7 +14,7 @@ import os
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 
-from frbench.backends import BACKENDS
+from frbench.backends import BACKENDS, simulator_refusal
 from frbench.errors import FrbenchError, unknown_name
 from frbench.evaluation.provenance import frbench_info, library_versions
 from frbench.evaluation.results import aggregate_cells, sim_to_sim, summarize
@@ -53,16 +53,20 @@ class EvaluationRequest:
     not_scored: dict[str, str] = field(default_factory=dict)
     #: The named grids' cell keys (robot, backend, terrain, level, seed); set by `apply_grids`.
     cell_keys: list[tuple] | None = None
+    #: Robots a simulator cannot take: backend -> robot -> why (their cells do not run); set by `validate`.
+    refused: dict[str, dict[str, str]] = field(default_factory=dict)
 
     def cells(self) -> list[Cell]:
-        """Every cell of the grid, in a fixed order."""
+        """Every cell of the grid that runs (none of `refused`), in a fixed order."""
         if self.cell_keys is not None:
-            return [Cell(*key, self.episodes) for key in self.cell_keys]
-        return [
-            Cell(robot, backend, terrain, level, seed, self.episodes)
-            for robot in self.robots for backend in self.backends for terrain in self.terrains
-            for level in self.levels for seed in self.seeds
-        ]
+            cells = [Cell(*key, self.episodes) for key in self.cell_keys]
+        else:
+            cells = [
+                Cell(robot, backend, terrain, level, seed, self.episodes)
+                for robot in self.robots for backend in self.backends for terrain in self.terrains
+                for level in self.levels for seed in self.seeds
+            ]
+        return [cell for cell in cells if cell.robot not in self.refused.get(cell.backend, {})]
 
 
 def apply_grids(request: EvaluationRequest, policy) -> None:
@@ -103,6 +107,13 @@ def validate(request: EvaluationRequest):
         spec = get_robot(robot)
         if not policy.supports(spec):
             raise FrbenchError(f"policy {policy.name!r} does not support robot {spec.name!r} ({spec.kind})")
+        for backend in request.backends:
+            reason = simulator_refusal(backend, spec)
+            if reason:
+                request.refused.setdefault(backend, {})[robot] = reason
+    if request.refused and not request.cells():
+        raise FrbenchError("no cell of the grid can run: " + "; ".join(
+            f"{backend}: {reason}" for backend, robots in request.refused.items() for reason in robots.values()))
     return policy
 
 
@@ -170,7 +181,7 @@ def build_results(request: EvaluationRequest, policy, episodes: list[dict], code
     cells = aggregate_cells(episodes)
     summary = summarize(cells)
     config = {k: v for k, v in request.__dict__.items()
-              if k not in RUN_ONLY_FIELDS and (request.grid or k not in GRID_FIELDS)}
+              if k not in RUN_ONLY_FIELDS and (request.grid or k not in GRID_FIELDS) and (v or k != "refused")}
     return {
         "schema_version": RESULTS_SCHEMA_VERSION,
         "protocol_version": PROTOCOL_VERSION,

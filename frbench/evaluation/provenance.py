@@ -11,7 +11,8 @@ import frbench
 
 _PACKAGES = {"mujoco": "mujoco", "pybullet": "pybullet", "pinocchio": "pin", "numpy": "numpy",
              "torch": "torch", "gymnasium": "gymnasium", "rsl_rl": "rsl-rl-lib", "example_robot_data": "example-robot-data",
-             "mujoco_warp": "mujoco-warp", "warp": "warp-lang"}  # the last two: the optional gpu extra
+             "mujoco_warp": "mujoco-warp", "warp": "warp-lang",  # the optional gpu extra
+             "sapien": "sapien"}  # the optional physx extra (PhysX 5 inside)
 
 
 def library_versions() -> dict[str, str]:

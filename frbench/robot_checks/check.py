@@ -76,8 +76,9 @@ def random_configurations(spec: RobotSpec, rng: np.random.Generator, n: int):
     return pos, quat, q
 
 
-def check_robot(spec: RobotSpec, n_random: int = 3, seed: int = 0, stand: bool = True) -> CheckReport:
-    """Compare mass and CoM across Pinocchio, MuJoCo and PyBullet; test standing."""
+def check_robot(spec: RobotSpec, n_random: int = 3, seed: int = 0, stand: bool = True,
+                backends: tuple[str, ...] = BACKEND_NAMES) -> CheckReport:
+    """Compare mass and CoM across Pinocchio and ``backends`` (default MuJoCo and PyBullet); test standing."""
     started = time.perf_counter()
     extra = dict(spec.extra)
     report = CheckReport(robot=spec.name, kind=spec.kind, physics_dt=spec.physics_dt, kp=list(spec.kp), kd=list(spec.kd))
@@ -95,7 +96,7 @@ def check_robot(spec: RobotSpec, n_random: int = 3, seed: int = 0, stand: bool =
     report.mass["pinocchio"] = reference_mass
     report.com["pinocchio"] = reference_com.tolist()
     states = RobotState.at_rest(pos, quat, q)
-    for name in BACKEND_NAMES:
+    for name in backends:
         backend = make_backend(name, spec, len(pos))
         try:
             backend.reset(np.arange(len(pos)), states)
@@ -115,7 +116,7 @@ def check_robot(spec: RobotSpec, n_random: int = 3, seed: int = 0, stand: bool =
         if not report.support["ok"]:
             report.problems.append(report.support["reason"])
     if stand:
-        for name in BACKEND_NAMES:
+        for name in backends:
             result = stand_test(spec, name)
             report.standing[name] = result
             if report.support and not report.support["ok"]:
