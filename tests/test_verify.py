@@ -285,8 +285,9 @@ def test_a_record_of_other_library_versions_is_compared_within_the_tolerance(cap
     status, out, _ = verify(capsys, path, "--save")
     assert status == 0, out
     assert "note: version of mujoco: 3.9.9 in the record, " in out and "compared within tolerance" in out
-    assert load_record(path)["verifications"][0]["mode"] == "tolerance"
-    assert "2 tolerance" in (root / "README.md").read_text()
+    entry = load_record(path)["verifications"][0]
+    assert (entry["mode"], entry["tier"]) == ("tolerance", "exact")  # compared within tolerance, found bit-identical
+    assert "2 exact" in (root / "README.md").read_text()
 
 
 @pytest.mark.parametrize("args, message", [

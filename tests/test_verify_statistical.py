@@ -65,17 +65,28 @@ def _verify(capsys, record: Path, *extra) -> tuple[int, str]:
     return status, capsys.readouterr().out
 
 
-def test_last_bit_differences_give_consistent_but_not_verified(foreign, tmp_path, capsys):
+def test_last_bit_differences_are_reproduced_and_larger_ones_only_consistent(foreign, tmp_path, capsys):
     onnx, results = foreign
 
-    def nudge(episodes):
+    def nudge(episodes):  # what another processor's float32 kernels could do to a metric
         episodes[0]["energy"] = episodes[0]["energy"] * (1 + 1e-12)
 
-    record = _submit_edited(tmp_path, onnx, results, nudge)
+    (tmp_path / "last-bit").mkdir()
+    record = _submit_edited(tmp_path / "last-bit", onnx, results, nudge)
+    status, out = _verify(capsys, record, "--save")
+    assert status == 0, out
+    assert "verified, tier reproduced: 2 of 2 sampled episodes reproduced within 1e-06 relative" in out
+    assert load_record(record)["verifications"][0]["tier"] == "reproduced"
+
+    def shift(episodes):  # beyond the tolerance, the outcomes unchanged: a chaotic episode gone elsewhere
+        episodes[0]["energy"] = episodes[0]["energy"] * (1 + 1e-3)
+
+    (tmp_path / "shifted").mkdir()
+    record = _submit_edited(tmp_path / "shifted", onnx, results, shift)
     status, out = _verify(capsys, record, "--save")
     assert status == 0, out
     assert "cannot be verified bit for bit here" in out and "statistical check:" in out
-    assert "is consistent with its re-run episodes but NOT verified" in out and "nothing written" in out
+    assert "tier consistent: consistent with its re-run episodes but NOT verified" in out and "nothing written" in out
     assert "verifications" not in load_record(record)
 
 

@@ -4,8 +4,12 @@ RECORD is a record file (``leaderboard/records/<id>.json.gz``) or a record id (o
 its first 8+ hex digits) in the leaderboard folder. The record is checked like
 ``frbench leaderboard --check`` does; then ``--sample`` episodes drawn with
 ``--seed`` are re-run with the record's policy and compared episode by episode
-(`frbench.leaderboard.verify`). Exit 0: every sampled episode reproduced; 1:
-a mismatch (the differences are listed), a replaced or missing policy file, or
+(`frbench.leaderboard.verify`), and the tier reached is printed: exact (bit-identical),
+reproduced (every outcome equal, every metric within the stated relative tolerance;
+the largest deviation is printed), consistent (a foreign policy's successes pass the
+statistical check) or failed. The processors that made the record (when its results
+name it) and that verified it are printed. Exit 0: exact or reproduced; 1:
+failed: a mismatch (the differences are listed), a replaced or missing policy file, or
 a record of another protocol version; 2: bad input. A foreign policy (ONNX,
 TorchScript, Stable-Baselines3) whose episodes differ on this processor gets a
 statistical check of its successes instead: exit 1 only when they are
@@ -55,7 +59,8 @@ def _locate(text: str, root_option: str | None) -> tuple[Path, Path]:
 def run(args: argparse.Namespace) -> int:
     from frbench.leaderboard.board import add_verification
     from frbench.leaderboard.records import load_record
-    from frbench.leaderboard.verify import RELATIVE_TOLERANCE, STATISTICAL_ALPHA, entry_of, verify
+    from frbench.evaluation.provenance import processor_label
+    from frbench.leaderboard.verify import STATISTICAL_ALPHA, entry_of, verify
 
     path, root = _locate(args.record, args.root)
     record = load_record(path)
@@ -69,11 +74,16 @@ def run(args: argparse.Namespace) -> int:
         print(f"policy: {report.policy_kind} {report.policy}")
     for note in report.notes:
         print(f"note: {note}")
+    print(f"processor: the record's {processor_label(results.get('processor'))}; "
+          f"this run's {processor_label(report.processor)}")
     if report.sample:
-        how = ("bit-identical (the record's library versions are these)" if report.mode == "exact" else
-               f"within tolerance: discrete outcomes equal, time_to_recover within one control period, other metrics "
-               f"within {RELATIVE_TOLERANCE:g} relative")
-        print(f"sample: {len(report.sample)} of {total} episodes (seed {args.seed}) in {report.cells} cells, compared {how}")
+        how = ("bit-identical first (the record's library versions are these)" if report.mode == "exact" else
+               "within tolerance (other library versions)")
+        print(f"sample: {len(report.sample)} of {total} episodes (seed {args.seed}) in {report.cells} cells, compared {how}; "
+              f"tier reproduced: discrete outcomes equal, time_to_recover within one control period, other metrics "
+              f"within {report.tolerance:g} relative")
+        where = f" ({report.deviation_at})" if report.deviation_at else ""
+        print(f"largest deviation of a metric: {report.largest_deviation:.3g} relative{where}")
     for failure in report.failures:
         print(f"mismatch: {failure}")
     check = report.statistical
@@ -81,15 +91,17 @@ def run(args: argparse.Namespace) -> int:
         print(f"statistical check: {check.successes} of {check.episodes} re-run episodes succeeded; the record's cells "
               f"predict {check.expected:.2f} (two-sided p = {check.p_value:.3g}; inconsistent below {STATISTICAL_ALPHA:g})")
     if not report.ok:
-        print(f"frbench verify: record {short} does NOT verify ({len(report.failures)} problem(s) above)")
+        print(f"frbench verify: record {short} does NOT verify, tier failed ({len(report.failures)} problem(s) above)")
         return 1
     if check is not None:
-        print(f"frbench verify: record {short} is consistent with its re-run episodes but NOT verified: a foreign "
+        print(f"frbench verify: record {short}, tier consistent: consistent with its re-run episodes but NOT verified: a foreign "
               f"policy's episodes differ by processor, and {check.episodes} episodes cannot confirm a record")
         if args.save:
             print("frbench verify: --save records only verifications; nothing written")
         return 0
-    print(f"frbench verify: record {short} verified: {len(report.sample)} of {len(report.sample)} sampled episodes reproduced")
+    how = "bit for bit" if report.tier == "exact" else f"within {report.tolerance:g} relative"
+    print(f"frbench verify: record {short} verified, tier {report.tier}: {len(report.sample)} of {len(report.sample)} "
+          f"sampled episodes reproduced {how}")
     if args.save:
         add_verification(root, path, entry_of(report))
         print(f"wrote the verification into {path}; commit it with {root / 'README.md'} and {root / 'index.html'}")

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 from frbench.backends import BACKENDS, simulator_refusal
 from frbench.errors import FrbenchError, unknown_name
-from frbench.evaluation.provenance import frbench_info, library_versions
+from frbench.evaluation.provenance import frbench_info, library_versions, processor_info
 from frbench.evaluation.results import aggregate_cells, sim_to_sim, summarize
 from frbench.evaluation.runner import Cell, run_cell
 from frbench.interrupts import children_ignore_sigint, terminate_pool
@@ -188,6 +188,7 @@ def build_results(request: EvaluationRequest, policy, episodes: list[dict], code
         "frbench": code or frbench_info(),
         "versions": library_versions(),
         "created": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "processor": processor_info(),
         "policy": {
             "name": policy.name,
             "checkpoint": str(checkpoint) if checkpoint else None,

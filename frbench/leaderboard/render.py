@@ -17,6 +17,7 @@ import json
 from decimal import ROUND_HALF_UP, Decimal
 from typing import Iterable, Mapping, Sequence
 
+from frbench.evaluation.provenance import processor_label
 from frbench.leaderboard.page import PAGE_SCRIPT, PAGE_STYLE, PAGE_TEMPLATE
 from frbench.leaderboard.policy_files import MAX_POLICY_BYTES, policy_file_label
 from frbench.leaderboard.records import record_file_name
@@ -43,7 +44,8 @@ from frbench.tasks.protocol import (
 )
 
 BACKEND_LABELS = {"mujoco": "MuJoCo", "pybullet": "PyBullet"}
-PROVENANCE_FIELDS = ("schema_version", "protocol_version", "frbench", "versions", "created", "policy", "config", "robots")
+PROVENANCE_FIELDS = ("schema_version", "protocol_version", "frbench", "versions", "created", "processor", "policy", "config",
+                     "robots")
 
 
 
@@ -75,11 +77,23 @@ PROCESSOR_BOUND_NOTE = (
 
 
 def fmt_verified(verified: Mapping | None) -> str:
-    """``16 exact``: the episodes a passed verification reproduced and how it compared them (``†``: on its
+    """``16 exact``: the episodes a passed verification reproduced and its tier (``exact`` / ``reproduced``;
+    a verification saved before tiers: how it compared them, ``exact`` / ``tolerance``) (``†``: on its
     processor only, `processor_bound`); ``-`` if none."""
     if not verified:
         return "-"
-    return f"{verified['sample']} {verified['mode']}" + (" †" if verified.get("processor_bound") else "")
+    return f"{verified['sample']} {verified.get('tier', verified['mode'])}" + (" †" if verified.get("processor_bound") else "")
+
+
+def _how_reproduced(check: Mapping) -> str:
+    """How a saved verification reproduced the episodes: its tier, or (saved before tiers) its mode."""
+    tier = check.get("tier")
+    if tier == "exact" or (tier is None and check["mode"] == "exact"):
+        return "bit-identical"
+    if tier is None:
+        return "within tolerance"
+    return (f"tier reproduced: outcomes equal, metrics within {check['tolerance']:g} relative, largest deviation "
+            f"{check['largest_deviation']:.2g}")
 
 
 def fmt_generalisation(row: Mapping, key: str) -> str:
@@ -495,11 +509,14 @@ def render_markdown(records: Sequence[Mapping]) -> str:
                              f"(sha256 {attached['sha256'][:12]}), {attached['bytes']} bytes.")
             else:
                 lines.append(f"  - Policy file attached: [{attached['file']}]({attached['file']}), {attached['bytes']} bytes.")
+        if "processor" in results:
+            lines.append(f"  - Evaluated on {md_escape(processor_label(results['processor']))}.")
         for check in record.get("verifications", []):
             lines.append(
                 f"  - Verified {check['verified']}: `frbench verify --sample {check['sample']} --seed {check['seed']}` re-ran "
                 f"{check['sample']} episodes in {check['cells']} cells with the {check['policy']} policy at frbench "
-                f"{check['frbench_commit'][:12]} and reproduced them ({'bit-identical' if check['mode'] == 'exact' else 'within tolerance'})"
+                f"{check['frbench_commit'][:12]} and reproduced them ({_how_reproduced(check)})"
+                + (f" on {md_escape(processor_label(check['processor']))}" if "processor" in check else "")
                 + (" on that machine's processor only †." if processor_bound(record) else ".")
             )
     if rows:
@@ -526,7 +543,7 @@ def page_data(records: Sequence[Mapping]) -> dict:
             "groups": [[*key, total, count] for key, (total, count) in groups.items()],
             "generalisation": record_generalisation(record),
             "intervals": interval_views(record),
-            "provenance": {k: record["results"][k] for k in PROVENANCE_FIELDS},
+            "provenance": {k: record["results"][k] for k in PROVENANCE_FIELDS if k in record["results"]},
         })
     return {
         "page_version": 2,

@@ -14,12 +14,22 @@ run again and compared:
    (``shipped``), else a built-in policy by name (``built-in``: code in frbench,
    re-run with this checkout's code; a record made at another commit reproduces
    only where that code did not change);
-3. the comparison (:func:`compare_episode`): ``exact`` when the record's library
-   versions equal this installation's (every field bit-identical), else
-   ``tolerance``: discrete outcomes (success, rollover, divergence, initial
-   pose, start redraws) equal, ``time_to_recover`` within one control period
-   and the continuous metrics within :data:`RELATIVE_TOLERANCE`; every
-   difference is listed.
+3. the comparison (:func:`compare_episode`), and the *tier* it reaches (:data:`TIERS`):
+
+   * ``exact``: every sampled episode bit-identical;
+   * ``reproduced``: discrete outcomes (success, rollover, divergence, initial
+     pose, start redraws) equal, ``time_to_recover`` within one control period
+     and every continuous metric within a relative tolerance: :data:`REPRODUCED_TOLERANCE`
+     when the record's library versions equal this installation's (mode
+     ``exact``), :data:`RELATIVE_TOLERANCE` when they differ or ``--tolerance``
+     is given (mode ``tolerance``); the largest deviation is reported;
+   * ``consistent``: a foreign policy (ONNX, TorchScript, Stable-Baselines3),
+     whose float32 kernels frbench cannot make portable, whose episodes differ
+     beyond that but whose successes pass the statistical check (verifies nothing);
+   * ``failed``: anything else; every difference beyond the tier's allowance is listed.
+
+   The processor of the record (its results' ``processor``, when recorded) and of
+   this run are reported (`frbench.evaluation.provenance.processor_info`).
 
 A record of another protocol version cannot be re-run by this frbench and does
 not verify; nor does one whose policy file is missing or replaced.
@@ -36,7 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from frbench.errors import FrbenchError
-from frbench.evaluation.provenance import frbench_info, library_versions
+from frbench.evaluation.provenance import frbench_info, library_versions, processor_info
 from frbench.evaluation.runner import Cell, run_cell
 from frbench.io import sha256_file
 from frbench.leaderboard.policy_files import stored_problems
@@ -45,8 +55,14 @@ from frbench.robots import get_robot
 from frbench.robots.sim_urdf import sim_robot_file
 from frbench.tasks.protocol import CONTROL_DT, PROTOCOL_VERSION
 
-#: Relative tolerance on continuous episode metrics when library versions differ.
+#: Relative tolerance on continuous episode metrics when library versions differ (mode ``tolerance``).
 RELATIVE_TOLERANCE = 1e-3
+#: Relative tolerance of the tier ``reproduced`` when the library versions are the record's (mode ``exact``):
+#: far above the last bits a processor can change (1e-16 relative per operation) and far below any edit that
+#: moves a score.
+REPRODUCED_TOLERANCE = 1e-6
+#: What a verification can show, best first (the module docstring).
+TIERS = ("exact", "reproduced", "consistent", "failed")
 #: The statistical check's level: a record is called inconsistent with its re-run episodes only when the
 #: probability of so extreme a success count, were the record true, is below this (a false alarm at most once
 #: in a thousand checks); above it the check says "consistent", which verifies nothing.
@@ -74,6 +90,15 @@ class Verification:
     failures: list[str] = field(default_factory=list)
     #: For a foreign policy whose episodes did not reproduce bit for bit: the statistical check's outcome.
     statistical: "StatisticalCheck | None" = None
+    #: Every sampled episode bit-identical.
+    identical: bool = False
+    #: The relative tolerance of the tier ``reproduced`` in this mode.
+    tolerance: float = REPRODUCED_TOLERANCE
+    #: The largest relative deviation of a continuous metric, and where (``field, episode``).
+    largest_deviation: float = 0.0
+    deviation_at: str = ""
+    #: The processor this verification ran on (`processor_info`).
+    processor: dict = field(default_factory=dict)
 
     @property
     def ok(self) -> bool:
@@ -83,6 +108,15 @@ class Verification:
     def verified(self) -> bool:
         """Reproduced episode by episode (a statistical check that finds the record consistent verifies nothing)."""
         return self.ok and self.statistical is None
+
+    @property
+    def tier(self) -> str:
+        """One of :data:`TIERS`."""
+        if not self.ok:
+            return "failed"
+        if self.statistical is not None:
+            return "consistent"
+        return "exact" if self.identical else "reproduced"
 
 
 @dataclass(frozen=True)
@@ -181,25 +215,41 @@ def resolve_policy(record: dict, root: Path, report: Verification) -> str | None
     )
 
 
-def _same(key: str, a, b, exact: bool) -> bool:
+def _same(key: str, a, b, exact: bool, tolerance: float) -> bool:
     if exact:
         return a == b and type(a) is type(b)
     numbers = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in (a, b))
     if key == "time_to_recover" and numbers:
         return abs(a - b) <= CONTROL_DT + 1e-9
     if key not in DISCRETE_FIELDS and isinstance(a, float) and isinstance(b, float):
-        return math.isclose(a, b, rel_tol=RELATIVE_TOLERANCE, abs_tol=1e-9)
+        return math.isclose(a, b, rel_tol=tolerance, abs_tol=1e-9)
     return a == b
 
 
-def compare_episode(recorded: dict, fresh: dict, exact: bool) -> list[str]:
-    """The fields where a re-run episode differs from the recorded one (``field recorded -> re-run``)."""
+def compare_episode(recorded: dict, fresh: dict, exact: bool, tolerance: float = RELATIVE_TOLERANCE) -> list[str]:
+    """The fields where a re-run episode differs from the recorded one (``field recorded -> re-run``): any
+    difference when ``exact``, else discrete outcomes, ``time_to_recover`` beyond one control period and
+    continuous metrics beyond ``tolerance`` relative."""
     differences = []
     for key in sorted(set(recorded) | set(fresh)):
         a, b = recorded.get(key, "(absent)"), fresh.get(key, "(absent)")
-        if not _same(key, a, b, exact):
+        if not _same(key, a, b, exact, tolerance):
             differences.append(f"{key} {a!r} -> {b!r}")
     return differences
+
+
+def largest_deviation(recorded: dict, fresh: dict) -> tuple[float, str]:
+    """(largest relative deviation |a - b| / max(|a|, |b|) of the continuous metrics, its field); (0, "") if none."""
+    found = (0.0, "")
+    for key in sorted(recorded):
+        a, b = recorded[key], fresh.get(key)
+        if key in DISCRETE_FIELDS or key == "time_to_recover" or not (isinstance(a, float) and isinstance(b, float)):
+            continue
+        scale = max(abs(a), abs(b))
+        deviation = abs(a - b) / scale if scale > 0 else 0.0
+        if deviation > found[0]:
+            found = (deviation, key)
+    return found
 
 
 def _describe(episode: dict) -> str:
@@ -226,6 +276,8 @@ def verify(record: dict, root: Path, *, sample: int = 8, seed: int = 0, toleranc
     versions = library_versions()
     changed = {k: (v, versions.get(k)) for k, v in results["versions"].items() if versions.get(k) != v}
     report.mode = "tolerance" if tolerance or changed else "exact"
+    report.tolerance = RELATIVE_TOLERANCE if report.mode == "tolerance" else REPRODUCED_TOLERANCE
+    report.processor = processor_info()
     for name, (then, now) in sorted(changed.items()):
         report.notes.append(f"version of {name}: {then} in the record, {now} here")
     _note_robot_changes(results, report)
@@ -235,7 +287,7 @@ def verify(record: dict, root: Path, *, sample: int = 8, seed: int = 0, toleranc
     started = time.monotonic()
     foreign = is_foreign(reference)
     rates = {tuple(c[k] for k in CELL_FIELDS): c["success_rate"] for c in results["cells"]}
-    recorded, fresh_episodes, cell_rates, differing = [], [], [], []
+    recorded, fresh_episodes, cell_rates, differing, identical = [], [], [], [], True
     for key, wanted in sorted(by_cell.items(), key=lambda item: tuple(map(str, item[0]))):
         fresh = run_cell(Cell(*key, results["config"]["episodes"]), reference, results["config"]["noise"],
                          joint_frame=results["policy"].get("joint_frame", "robot"))
@@ -245,7 +297,11 @@ def verify(record: dict, root: Path, *, sample: int = 8, seed: int = 0, toleranc
             recorded.append(episode)
             fresh_episodes.append(again)
             cell_rates.append(rates[key])
-            differences = compare_episode(episode, again, report.mode == "exact")
+            identical = identical and not compare_episode(episode, again, exact=True)
+            deviation, metric = largest_deviation(episode, again)
+            if deviation > report.largest_deviation:
+                report.largest_deviation, report.deviation_at = deviation, f"{metric}, {_describe(episode)}"
+            differences = compare_episode(episode, again, exact=False, tolerance=report.tolerance)
             if differences:
                 differing.append((episode, differences))
         if progress:
@@ -264,6 +320,7 @@ def verify(record: dict, root: Path, *, sample: int = 8, seed: int = 0, toleranc
                 f"cells predict {check.expected:.2f} (p = {check.p_value:.2g} < {STATISTICAL_ALPHA:g})")
     else:
         report.failures += [f"{_describe(e)}: {'; '.join(d)}" for e, d in differing]
+    report.identical = identical and not differing
     report.sample = indices
     report.cells = len(by_cell)
     report.notes.append(f"re-ran {len(by_cell)} cells in {time.monotonic() - started:.1f} s")
@@ -287,4 +344,6 @@ def entry_of(report: Verification) -> dict:
         "sample": len(report.sample), "cells": report.cells, "seed": report.seed, "mode": report.mode,
         "policy": report.policy_kind, "protocol_version": report.protocol_version,
         "frbench_commit": info["git_commit"], "frbench_dirty": info["git_dirty"],
+        "tier": report.tier, **({"tolerance": report.tolerance} if report.tier == "reproduced" else {}),
+        "largest_deviation": report.largest_deviation, "processor": report.processor,
     }
