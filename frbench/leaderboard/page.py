@@ -220,7 +220,7 @@ PAGE_SCRIPT = r"""
                get: function (x) { return x.r.policy_file ? "attached" : null; }});
     cols.push({key: "verified", label: "Verified", title: "episodes re-run by frbench verify and reproduced", num: true, dir: "desc",
                get: function (x) { return x.r.verified ? x.r.verified.sample : null; },
-               show: function (x) { var v = x.r.verified; return v ? "\u2713 " + v.sample + " (" + v.mode + ")" + (v.processor_bound ? " \u2020" : "") : "\u2013"; }});
+               show: function (x) { var v = x.r.verified; return v ? "\u2713 " + v.sample + " (" + (v.tier || v.mode) + ")" + (v.processor_bound ? " \u2020" : "") : "\u2013"; }});
     cols.push({key: "submitted", label: "Submitted", dir: "asc", get: function (x) { return x.r.submitted.slice(0, 10); }});
     cols.push({key: "id", label: "Record", dir: "asc", id: true, get: function (x) { return x.r.id.slice(0, 12); }});
     return cols;
@@ -352,12 +352,17 @@ PAGE_SCRIPT = r"""
     dlRow(dl, "frbench", p.frbench.version + " (commit " + p.frbench.git_commit + ")");
     dlRow(dl, "Results created", p.created);
     dlRow(dl, "Versions", keyTable(p.versions, function (v) { return v === null ? "\u2013" : v; }));
+    if (p.processor) dlRow(dl, "Processor", p.processor.vendor + " " + p.processor.model + " (" + p.processor.architecture + "; " +
+                              p.processor.vector_extensions.join(", ") + ")");
     dlRow(dl, "Checkpoint", p.policy.checkpoint === null ? "none (" + p.policy.name + ")" : p.policy.checkpoint);
     dlRow(dl, "Checkpoint sha256", p.policy.sha256);
     dlRow(dl, "Policy file", rec.policy_file ? rec.policy_file + (rec.policy_file.startsWith("policies/") ? " (attached)" : "") : "none attached");
     var v = rec.verified;
-    dlRow(dl, "Verified", v ? v.sample + " episodes in " + v.cells + " cells re-run and reproduced (" + v.mode + ", sample seed " +
-          v.seed + ", " + v.policy + " policy, frbench " + v.frbench_commit.slice(0, 12) + ", " + v.verified + ")" +
+    dlRow(dl, "Verified", v ? v.sample + " episodes in " + v.cells + " cells re-run and reproduced (" + (v.tier || v.mode) +
+          (v.tier === "reproduced" ? " within " + v.tolerance + " relative, largest deviation " + v.largest_deviation.toPrecision(2) : "") +
+          ", sample seed " + v.seed + ", " + v.policy + " policy, frbench " + v.frbench_commit.slice(0, 12) + ", " + v.verified +
+          (v.processor ? ", on " + v.processor.vendor + " " + v.processor.model + " (" + v.processor.architecture + "; " +
+           v.processor.vector_extensions.join(", ") + ")" : "") + ")" +
           (v.processor_bound ? " \u2020 " + PROCESSOR_BOUND : "") : "not verified");
     dlRow(dl, "Robots (URDF sha256, source)", keyTable(p.robots, function (v) { return v.urdf_sha256 + "  " + v.source; }));
     dlRow(dl, "Seeds", p.config.seeds.join(", "));
