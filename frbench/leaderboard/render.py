@@ -31,7 +31,7 @@ from frbench.leaderboard.scores import (
     scored_cells,
 )
 from frbench.leaderboard.summaries import interval_views, record_generalisation, record_intervals
-from frbench.leaderboard.verify import RELATIVE_TOLERANCE
+from frbench.leaderboard.verify import RELATIVE_TOLERANCE, REPRODUCED_TOLERANCE
 from frbench.tasks.protocol import (
     KNOWN_PROTOCOL_VERSIONS,
     PROTOCOL_VERSION,
@@ -385,11 +385,13 @@ def render_markdown(records: Sequence[Mapping]) -> str:
         "`policies/<sha256><suffix>`; a checkpoint shipped in frbench is referred to by its sha256). `frbench verify RECORD [--sample N] [--seed S]` re-runs a seeded random",
         "sample of a record's episodes from its provenance with that policy (or with the shipped checkpoint of the",
         "same sha256, or a built-in policy by name, re-run with the checkout's code) and compares them episode by",
-        "episode: bit-identical (*exact*) where the library versions match, else (or with `--tolerance`, for a",
-        "record made on other hardware) the same success, rollover, divergence, initial pose and start redraws,",
-        f"time to recover within one control period and the other metrics within {100 * RELATIVE_TOLERANCE:g} % "
-        "(*tolerance*); it exits 1",
-        "on a mismatch and lists the differences. *Verified*: episodes reproduced by `frbench verify --save`.",
+        "episode, naming the tier reached and the processors that made and re-ran the record: *exact* (bit-identical),",
+        "*reproduced* (the same success, rollover, divergence, initial pose and start redraws, time to recover within",
+        f"one control period and the other metrics within {REPRODUCED_TOLERANCE:g} relative where the library versions "
+        f"match, else within {RELATIVE_TOLERANCE:g}),",
+        "*consistent* (a foreign policy's successes pass a statistical check; verifies nothing) or *failed*, when it",
+        "exits 1 and lists the differences (docs/protocol.md). *Verified*: episodes reproduced by `frbench verify --save`,",
+        "and the tier (saved before tiers: *exact* or *tolerance*, how they were compared).",
         "Open [index.html](index.html) for filters by robot, backend and terrain family, success-vs-level",
         "charts and each record's provenance.",
         "",
