@@ -30,6 +30,7 @@ from frbench.leaderboard.scores import (
     needs_unseen_grid,
     scored_cells,
 )
+from frbench.leaderboard.sections import SIMULATOR_STATE, inputs_of, section_of, superseded
 from frbench.leaderboard.summaries import interval_views, record_generalisation, record_intervals
 from frbench.leaderboard.verify import RELATIVE_TOLERANCE, REPRODUCED_TOLERANCE
 from frbench.tasks.protocol import (
@@ -131,44 +132,6 @@ def axes(records: Sequence[Mapping]) -> dict[str, list]:
         "families": _ordered(STANDARD_TERRAINS, (c["terrain"] for c in cells)),
         "levels": sorted(set(STANDARD_LEVELS) | {c["level"] for c in cells}),
     }
-
-
-def superseded(records: Sequence[Mapping]) -> dict[str, str]:
-    """Record id → the id of the record that supersedes it: a current-protocol record of a learned policy run in
-    the robot's own joint frame, where a current-protocol record of the same policy file (its sha256) ran it in
-    the canonical frame (`frbench.robots.joint_frame`; docs/protocol.md, "The joint frame"). Each id keeps
-    meaning its own results; the superseded one moves to the archived section."""
-    canonical = {}
-    for record in records:
-        policy = record["results"]["policy"]
-        if (record["results"]["protocol_version"] == PROTOCOL_VERSION and policy.get("sha256")
-                and policy.get("joint_frame") == "canonical"):
-            canonical.setdefault(policy["sha256"], record["id"])
-    out = {}
-    for record in records:
-        policy = record["results"]["policy"]
-        if (record["results"]["protocol_version"] == PROTOCOL_VERSION and policy.get("joint_frame", "robot") == "robot"
-                and policy.get("sha256") in canonical):
-            out[record["id"]] = canonical[policy["sha256"]]
-    return out
-
-
-def section_of(record: Mapping, replaced: Mapping[str, str] | None = None) -> str:
-    """``main`` / ``partial`` for records of the current protocol version, ``archived`` for any other version and
-    for a record ``replaced`` names (`superseded`). A policy that reads the simulator's state (`inputs_of`) is
-    never ranked with blind policies: ``partial``."""
-    if record["results"]["protocol_version"] != PROTOCOL_VERSION or record["id"] in (replaced or {}):
-        return "archived"
-    return "partial" if inputs_of(record) == SIMULATOR_STATE else record["track"]
-
-
-#: ``results.policy.inputs`` of a policy that reads the acting simulator's full state (a planner such as ``mpc``).
-SIMULATOR_STATE = "simulator-state"
-
-
-def inputs_of(record: Mapping) -> str:
-    """What the record's policy read: ``proprioception`` (the default: a blind policy) or ``simulator-state``."""
-    return record["results"]["policy"].get("inputs", "proprioception")
 
 
 def _rank(rows: list[dict]) -> None:
