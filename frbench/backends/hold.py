@@ -1,7 +1,8 @@
 """Hold a robot's default pose with its PD on flat ground: a physics-only routine below the tasks.
 
 The measured standing height and the robot check (`frbench.robot_checks`) and the training's feasibility filter
-(`frbench.training.feasibility`) all run it; it steps a backend it builds and closes itself.
+(`frbench.training.feasibility`) all run it; it steps a backend it builds and closes itself. The drop tests
+that compare the simulators (`drop_height`, docs/physx.md) hold the pose from other starts.
 """
 
 from __future__ import annotations
@@ -13,6 +14,14 @@ import numpy as np
 from frbench.backends import make_backend
 from frbench.backends.base import CONTROL_DT, Contacts, PhysicsParams, RobotState
 from frbench.robots.spec import RobotSpec
+from frbench.terrains.geometry import Box, Terrain
+
+#: Drop tests: name → (base position [m], base quaternion w, x, y, z, on the two-box step (else flat ground)).
+DROP_TESTS = {
+    "upright from 0.45 m": ((0.0, 0.0, 0.45), (1.0, 0.0, 0.0, 0.0), False),
+    "side-lying from 0.25 m": ((0.0, 0.0, 0.25), (np.cos(np.pi / 4), np.sin(np.pi / 4), 0.0, 0.0), False),
+    "over a two-box step": ((0.0, 0.0, 0.45), (1.0, 0.0, 0.0, 0.0), True),
+}
 
 
 @dataclass(frozen=True)
@@ -48,3 +57,20 @@ def hold_default_pose(spec: RobotSpec, backend_name: str, seconds: float, tail_s
         return HeldPose(tuple(heights), backend.state(), backend.contacts(), bool(backend.diverged[0]))
     finally:
         backend.close()
+
+
+def two_box_step() -> Terrain:
+    """Two boxes 1 m × 2 m, tops at 0.02 m (x < 0) and 0.07 m (x > 0): a 5 cm step whose edge runs under a robot
+    placed at the origin, so that its front and rear feet land on different boxes."""
+    boxes = (Box((-0.5, 0.0, 0.01), (0.5, 1.0, 0.01)), Box((0.5, 0.0, 0.035), (0.5, 1.0, 0.035)))
+    return Terrain("stairs", 1, -1, boxes=boxes, floor_z=0.0, spawn_xy=(0.0, 0.0), spawn_yaw=0.0,
+                   description="two-box step (drop test)")
+
+
+def drop_height(spec: RobotSpec, backend_name: str, drop: str, seconds: float = 2.0) -> float:
+    """The root height [m] after ``spec``, at rest in its default pose, is dropped as `DROP_TESTS` ``drop`` says and
+    holds the pose with its PD for ``seconds`` in ``backend_name``."""
+    pos, quat, on_step = DROP_TESTS[drop]
+    start = RobotState.at_rest([pos], quat, [spec.default_pose])
+    held = hold_default_pose(spec, backend_name, seconds, start=start, terrain=two_box_step() if on_step else None)
+    return held.heights[-1]

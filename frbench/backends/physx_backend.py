@@ -35,7 +35,7 @@ from frbench.backends.base import (
     summarize_contacts,
 )
 from frbench.backends.explicit_pd import ExplicitPdBatch
-from frbench.backends.physx_scene import build_simulation, import_sapien, physx_refusal
+from frbench.backends.physx_scene import PhysxSettings, build_simulation, import_sapien, physx_refusal
 from frbench.portable_products import dot, transposed_times, unit
 from frbench.robots.sim_urdf import sim_robot_file
 from frbench.robots.spec import RobotSpec
@@ -54,10 +54,12 @@ class PhysxBackend(ExplicitPdBatch):
         import_sapien()
         return physx_refusal(spec)
 
-    def __init__(self, spec: RobotSpec, num_envs: int, terrain=None, variants=None):
+    def __init__(self, spec: RobotSpec, num_envs: int, terrain=None, variants=None,
+                 settings: PhysxSettings = PhysxSettings()):
         """N simulations of ``spec`` on ``terrain`` (flat if None); ``variants`` (specs, assignment, frictions,
         payloads): simulation i runs ``specs[assignment[i]]`` (friction and payload then come from
-        `set_params`, as in the PyBullet backend)."""
+        `set_params`, as in the PyBullet backend). ``settings``: the PhysX solver's (the protocol's by default;
+        another is for measurements such as benchmarks/physx_throughput.py, never for scores)."""
         self._sapien = import_sapien()
         self.spec = spec
         self.num_envs = int(num_envs)
@@ -66,7 +68,7 @@ class PhysxBackend(ExplicitPdBatch):
         self.substeps = int(round(CONTROL_DT / self.physics_dt))
         self.link_names = sim_robot_file(spec).links
         specs, assignment = ([spec], np.zeros(self.num_envs, dtype=int)) if variants is None else variants[:2]
-        self.sims = [build_simulation(specs[k], self.terrain, self.link_names) for k in assignment]
+        self.sims = [build_simulation(specs[k], self.terrain, self.link_names, settings) for k in assignment]
         # per simulation: the root's centre of mass in its link frame [m], the links' CoM poses in their frames,
         # and each articulation link index's row in `link_names`
         self._root_com = np.array([sim.links[0].get_cmass_local_pose().p for sim in self.sims], dtype=float)
@@ -78,6 +80,9 @@ class PhysxBackend(ExplicitPdBatch):
                 rows[link.get_index()] = row
             self._row_of_index.append(rows)
         self._link_class = self._sapien.physx.PhysxArticulationLinkComponent
+        self._joint_dof = self.sims[0].joint_dof  # the same in every simulation (variants share the joints)
+        if any(sim.joint_dof != self._joint_dof or sim.dof != self.sims[0].dof for sim in self.sims):
+            raise ValueError("physx backend: the morphology variants' joints differ from the robot's")
         self._init_batch(spec, self.num_envs)
 
     # ------------------------------------------------------------------ params
@@ -119,24 +124,31 @@ class PhysxBackend(ExplicitPdBatch):
         self._state = None
 
     def step(self, joint_targets) -> None:
-        """One control period: ``substeps`` × (PD torque in numpy, ``set_qf``, base force, ``scene.step``)."""
+        """One control period: ``substeps`` × (the PD torques of every live simulation in one numpy call, then per
+        simulation ``set_qf``, the base force and ``scene.step``)."""
         targets = check_targets(joint_targets, self.num_envs, self.spec.n_joints)
-        params, limits = self.params, self._limits
-        zero = np.zeros(3, dtype=np.float32)
-        for i, sim in enumerate(self.sims):
-            if self.diverged[i]:
-                continue
-            robot, scene, dofs, target = sim.robot, sim.scene, sim.joint_dof, targets[i]
-            force = self._base_force[i].astype(np.float32) if self._base_force[i].any() else None
-            qf = np.zeros(sim.dof, dtype=np.float32)
-            for _ in range(self.substeps):  # the hot loop: keep it lean
-                tau = actuator_torque(params, limits, target, robot.get_qpos()[dofs], robot.get_qvel()[dofs], i)
-                qf[dofs] = tau
-                robot.set_qf(qf)
-                if force is not None:
-                    sim.links[0].add_force_torque(force, zero)
-                scene.step()
-            self._tau[i] = tau
+        live = np.flatnonzero(~self.diverged)
+        if live.size == 0:
+            self._finish_step()
+            return
+        sims = [self.sims[i] for i in live]
+        dofs, zero = self._joint_dof, np.zeros(3, dtype=np.float32)
+        pushed = [(sim.links[0], self._base_force[i].astype(np.float32))
+                  for i, sim in zip(live, sims) if self._base_force[i].any()]
+        qf = np.zeros((live.size, sims[0].dof), dtype=np.float32)
+        targets = targets[live]
+        for _ in range(self.substeps):  # the hot loop: keep it lean
+            q = np.array([sim.robot.get_qpos() for sim in sims])[:, dofs]
+            qd = np.array([sim.robot.get_qvel() for sim in sims])[:, dofs]
+            tau = actuator_torque(self.params, self._limits, targets, q, qd, live)
+            qf[:, dofs] = tau
+            for sim, torques in zip(sims, qf):
+                sim.robot.set_qf(torques)
+            for link, force in pushed:  # PhysX clears external forces after every step
+                link.add_force_torque(force, zero)
+            for sim in sims:
+                sim.scene.step()
+        self._tau[live] = tau
         self._finish_step()
 
     def _read_state(self) -> RobotState:
@@ -175,21 +187,28 @@ class PhysxBackend(ExplicitPdBatch):
     def contacts(self) -> Contacts:
         """Net contact force per link (world frame): the normal impulses of the last physics step's contact points
         over the step (module docstring), on both links of a self-contact, summarised by group."""
-        link_force = np.zeros((self.num_envs, len(self.link_names), 3))
+        n_links = len(self.link_names)
         link_class = self._link_class
+        index, sign, impulses = [], [], []  # per contact point and link it acts on: (simulation, link) row, ±1
         for i, sim in enumerate(self.sims):
-            rows = self._row_of_index[i]
+            rows = self._row_of_index[i] + i * n_links
             for contact in sim.scene.get_contacts():
-                impulse = np.zeros(3)
-                for point in contact.points:  # added in order: the sum's last bit is the same on any processor
-                    impulse = impulse + point.impulse
-                force = impulse / self.physics_dt
                 first, second = contact.bodies
+                acted = []
                 if isinstance(first, link_class):  # the impulses act on the first body
-                    link_force[i, rows[first.get_index()]] += force
+                    acted.append((rows[first.get_index()], 1.0))
                 if isinstance(second, link_class):
-                    link_force[i, rows[second.get_index()]] -= force
-        return summarize_contacts(self.spec, self.link_names, link_force)
+                    acted.append((rows[second.get_index()], -1.0))
+                for point in contact.points:
+                    impulse = point.impulse
+                    for row, direction in acted:
+                        index.append(row)
+                        sign.append(direction)
+                        impulses.append(impulse)
+        link_force = np.zeros((self.num_envs * n_links, 3))
+        if index:  # added point after point (np.add.at): the sums' last bits are the same on any processor
+            np.add.at(link_force, index, np.array(impulses, dtype=float) * (np.array(sign) / self.physics_dt)[:, None])
+        return summarize_contacts(self.spec, self.link_names, link_force.reshape(self.num_envs, n_links, 3))
 
     def close(self) -> None:
         """Free the scenes."""
