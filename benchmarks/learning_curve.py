@@ -53,6 +53,20 @@ nearest each of ``--marks``: how the carry-over to Go2 grows with training
 
     python benchmarks/learning_curve.py --out runs/lc-symmetry-assist-steady --report --marks 6e6,15e6 \
         --evaluate-marks 8 --evaluate-robots go2,go1
+
+``--subset-every STEPS`` makes each seed's curve a standard-grid estimate: the seed trains in chunks of STEPS env
+steps (``frbench train --resume --steps``), and after each chunk its policy plays the fixed subset
+``standard-seed0`` of the protocol's standard grid (`SUBSET`: every standard cell of evaluation seed 0, the five
+quadrupeds x both simulators x seven families x levels 1, 5, 10 x 3 episodes: 210 cells, 630 episodes, a
+quarter of the grid; ``OUT/seed<S>/subset-<env steps>.json``, kept). The report prints per seed and checkpoint
+the subset's success rate, its 95 % Wilson interval and the imitation weight of the training rows there (a
+kickstarting run's ``loss_imitation_weight``), the policy ``scripted`` on the same subset
+(``OUT/subset-scripted.json``), and the stop rule (above ``--stop-at`` at half the budget).
+The ``kickstart-scripted`` recipe (docs/training.md, "Learning from scripted")::
+
+    nice -n 10 python benchmarks/learning_curve.py --preset kickstart-scripted --out runs/kickstart --seeds 0 \
+        --steps 24e6 --subset-every 3e6 --jobs 1
+    python benchmarks/learning_curve.py --out runs/kickstart --seeds 0 --steps 24e6 --subset-every 3e6 --report
 """
 
 from __future__ import annotations
@@ -66,6 +80,10 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 MARKS = (0.5e6, 1.0e6, 1.5e6, 2.0e6, 2.5e6, 3.0e6)
+#: ``standard-seed0``: the standard grid's cells of evaluation seed 0 (``frbench evaluate`` arguments).
+SUBSET_NAME = "standard-seed0"
+SUBSET = {"robots": "go2,go1,aliengo,spot_like,lite3_like", "backends": "mujoco,pybullet",
+          "terrains": "flat,rough,slopes,stairs,stones,gaps,beams", "levels": "1,5,10", "seeds": "0", "episodes": "3"}
 #: The evaluation seeds of the Go2 flat scores (``frbench evaluate --seeds``).
 EVALUATION_SEEDS = (0, 1, 2, 3)
 
@@ -92,6 +110,8 @@ def next_train_command(args, seed: int, folder: Path) -> list[str] | None:
     staged = bool(stage_args) and (folder / "config.json").is_file() and stage_recorded(folder, stage_args)
     budget = stage_at if stage_args and not staged else args.steps
     steps = trained_steps(folder)
+    if getattr(args, "subset_every", 0):  # train to the next checkpoint of the subset's curve
+        budget = min(budget, (steps // args.subset_every + 1) * args.subset_every)
     if not (folder / "config.json").is_file():
         fields = [x for item in args.fields for x in ("--set", item)]
         return [*frbench, "train", "--method", args.method, "--preset", args.preset, "--envs", str(args.envs),
@@ -107,13 +127,83 @@ def train_seed(args, seed: int) -> None:
     """Run one seed's ``frbench train`` commands one after another, logging beside its run (``OUT/seed<S>.log``)."""
     folder = args.out / f"seed{seed}"
     with open(args.out / f"seed{seed}.log", "a") as log:
-        while (command := next_train_command(args, seed, folder)) is not None:
+        while True:
+            if getattr(args, "subset_every", 0):
+                evaluate_subset_checkpoint(folder, args.subset_every, log)
+            command = next_train_command(args, seed, folder)
+            if command is None:
+                break
             log.write("$ " + shlex.join(command) + "\n")
             log.flush()
             finished = subprocess.run(command, stdout=log, stderr=subprocess.STDOUT)
             if finished.returncode != 0:
                 print(f"seed {seed}: frbench train exited {finished.returncode} (log: {log.name})", file=sys.stderr)
                 return
+
+
+def evaluate_subset(policy: str, result: Path, log=None) -> dict:
+    """``frbench evaluate`` of ``policy`` on `SUBSET`, written to ``result`` (kept when it exists); its results."""
+    if not result.is_file():
+        command = [sys.executable, "-m", "frbench", "evaluate", "--policy", str(policy), "--jobs", "1",
+                   "--out", str(result), *[x for k, v in SUBSET.items() for x in (f"--{k}", v)]]
+        if log is not None:
+            log.write("$ " + shlex.join(command) + "\n")
+            log.flush()
+        subprocess.run(command, check=True, stdout=subprocess.DEVNULL, stderr=log or subprocess.DEVNULL)
+    return json.loads(result.read_text())
+
+
+def subset_results(folder: Path) -> dict[int, Path]:
+    """The run's subset results by env steps (``subset-<env steps>.json``)."""
+    return {int(p.stem.split("-")[1]): p for p in folder.glob("subset-*.json")}
+
+
+def evaluate_subset_checkpoint(folder: Path, every: float, log) -> None:
+    """Score the run's current policy on `SUBSET` when it is the first checkpoint at or past a multiple of
+    ``every`` env steps that has no subset result yet."""
+    steps = trained_steps(folder)
+    mark = int(steps // every)
+    if mark < 1 or any(int(s // every) == mark for s in subset_results(folder)):
+        return
+    evaluate_subset(str(folder / "policy.pt"), folder / f"subset-{steps}.json", log)
+
+
+def subset_rate(results: dict) -> tuple[int, int]:
+    """(successes, episodes) of a results file."""
+    episodes = results["episodes"]
+    return sum(bool(e["success"]) for e in episodes), len(episodes)
+
+
+def report_subset(out: Path, seeds: list[int], budget: float, stop_at: float) -> None:
+    """Print each seed's standard-grid estimate on `SUBSET` at its checkpoints with the imitation weight there,
+    ``scripted`` on the same cells, and the stop rule (the first checkpoint at or past half the budget above
+    ``stop_at``)."""
+    from frbench.evaluation.intervals import wilson_interval
+
+    def cell(results: dict) -> str:
+        wins, n = subset_rate(results)
+        low, high = wilson_interval(wins, n)
+        return f"{wins / n:.3f} [{low:.3f}, {high:.3f}] ({wins}/{n})"
+
+    print(f"standard-grid estimate on the subset {SUBSET_NAME} ({', '.join(f'{k} {v}' for k, v in SUBSET.items())})")
+    print(f"scripted: {cell(evaluate_subset('scripted', out / 'subset-scripted.json'))}")
+    for seed in seeds:
+        folder = out / f"seed{seed}"
+        path = folder / "progress.json"
+        progress = json.loads(path.read_text()) if path.is_file() else []
+        half = None
+        for steps, result in sorted(subset_results(folder).items()):
+            row = at_mark(progress, steps) or {}
+            weight = row.get("loss_imitation_weight", float("nan"))
+            results = json.loads(result.read_text())
+            print(f"seed {seed}  {steps / 1e6:6.2f} M  {cell(results)}  imitation weight {weight:.3f}")
+            if half is None and steps >= budget / 2:
+                half = subset_rate(results)
+        if half is None:
+            print(f"seed {seed}: stop rule: not yet at half the budget ({budget / 2e6:g} M)")
+        else:
+            verdict = "go on" if half[0] / half[1] > stop_at else "stop"
+            print(f"seed {seed}: stop rule at half the budget: {half[0] / half[1]:.3f} vs {stop_at:g}: {verdict}")
 
 
 def train_all(args, seeds: list[int]) -> None:
@@ -269,6 +359,10 @@ def main(argv=None) -> int:
     parser.add_argument("--stage", type=parse_stage, metavar="AT:ARGS",
                         help="at AT env steps resume once with these frbench train arguments (a new stage)")
     parser.add_argument("--target", type=float, default=0.6)
+    parser.add_argument("--subset-every", type=float, default=0, metavar="STEPS",
+                        help=f"train in chunks of STEPS env steps and score each on the subset {SUBSET_NAME}")
+    parser.add_argument("--stop-at", type=float, default=0.35,
+                        help="the stop rule: the subset estimate at half the budget must be above this")
     parser.add_argument("--report", action="store_true", help="print the table of the existing runs only")
     parser.add_argument("--marks", default=",".join(f"{m:g}" for m in MARKS),
                         help="env-step marks of the table (comma-separated), the last one the target's")
@@ -286,6 +380,8 @@ def main(argv=None) -> int:
         train_all(args, seeds)
     marks = tuple(float(m) for m in args.marks.split(","))
     report(args.out, seeds, args.target, marks)
+    if args.subset_every:
+        report_subset(args.out, seeds, args.steps, args.stop_at)
     if args.deterministic:
         report_deterministic(args.out, seeds, args.target, args.deterministic)
     robots = args.evaluate_robots.split(",")

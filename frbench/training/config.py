@@ -27,7 +27,9 @@ from frbench.policies.scripted_humanoid import DEFAULT_GATE_PHASES, gate_phase_i
 from frbench.robots import get_robot
 from frbench.robots.morphology import morphology_ranges
 from frbench.terrains import FAMILIES
+from frbench.training.dagger import ImitationSchedule
 from frbench.training.reward_tables import reward_table
+from frbench.training.teacher import ENV_TEACHERS
 from frbench.training.rewards import RewardConfig
 
 #: Gain ranges of frbench's training (the paper: Kp [20, 80], Kd [0.6, 2.0]); see docs/training.md.
@@ -108,6 +110,18 @@ class TrainEnvConfig:
     #: (`action_hold.HeldAction`; 1: every step). Rewards are summed over the held steps; ``episode_steps``
     #: stays in control steps.
     action_hold: int = 1
+    #: A teacher that labels every control step inside the env (`frbench.training.teacher`, ``"scripted"``), whose
+    #: label, imitation weight and PPO weight the ``teacher`` observation group carries; None: no teacher.
+    teacher: str | None = None
+    #: The teacher's timetable (`frbench.training.dagger.ImitationSchedule`), in env steps: DAgger for
+    #: ``dagger_steps`` in ``dagger_rounds`` rounds (round 0 the teacher acts in every episode, later rounds in a
+    #: fraction ``dagger_beta``), then the imitation weight falls linearly from ``imitation_weight`` to 0 at
+    #: ``imitation_until``.
+    dagger_steps: float = 0.0
+    dagger_rounds: int = 1
+    dagger_beta: float = 0.0
+    imitation_weight: float = 1.0
+    imitation_until: float = 0.0
 
     def __post_init__(self) -> None:
         def set_(name: str, value) -> None:
@@ -122,6 +136,11 @@ class TrainEnvConfig:
         self._validate()
         if self.reward is None:
             set_("reward", reward_table(self.robot_kind()))
+
+    def imitation_schedule(self) -> ImitationSchedule:
+        """The teacher's timetable (`ImitationSchedule`) from the ``dagger_*`` and ``imitation_*`` fields."""
+        return ImitationSchedule(self.dagger_steps, self.dagger_rounds, self.dagger_beta, self.imitation_weight,
+                                 self.imitation_until, self.seed)
 
     def robot_kind(self) -> str:
         """``"quadruped"`` (randomised morphologies, or a named quadruped) or ``"humanoid"``."""
@@ -163,6 +182,13 @@ class TrainEnvConfig:
                 gate_phase_ids(self.gate_phases)
             except ValueError as exc:
                 raise ValueError(f"gate_phases {self.gate_phases!r}: {exc}") from None
+        need(self.teacher is None or self.teacher in ENV_TEACHERS, "teacher", f"one of {', '.join(ENV_TEACHERS)} or none")
+        if self.teacher is not None:
+            need(self.action_hold == 1, "action_hold", "1 with a teacher (it labels every control step)")
+            need(not self.base_controller, "base_controller", "none with a teacher (it labels the plain policy)")
+            need(self.robot_kind() == "quadruped", "teacher", "a quadruped batch (scripted drives quadrupeds)")
+            need(self.backend != "mujoco-warp", "backend", "a CPU simulator with a teacher")
+        self.imitation_schedule()  # ValueError naming a bad dagger_* or imitation_* value
         for name in ("gain_ranges", "morphology_ranges"):
             for key, (low, high) in getattr(self, name).items():
                 if not low <= high:

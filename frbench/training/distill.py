@@ -1,8 +1,9 @@
 """DAgger of the ``mpc`` planner into an MLP that observes only proprioception (``frbench distill``).
 
-Round 0 is behaviour cloning: the teacher acts and labels every step with its own action. Each later
-round r is DAgger: the student trained on rounds 0..r−1 acts (a fraction ``beta`` of the episodes, drawn
-from a seeded generator, is still acted by the teacher), and the teacher labels every visited state,
+The rounds follow frbench's DAgger rule (`frbench.training.dagger`, shared with the teacher that labels
+inside the training env). Round 0 is behaviour cloning: the teacher acts and labels every step with its own
+action. Each later round r is DAgger: the student trained on rounds 0..r−1 acts (a fraction ``beta`` of the
+episodes, drawn from a seeded generator, is still acted by the teacher), and the teacher labels every visited state,
 planning from that step's simulator state (it gets it through the episode runner's hooks, as in
 evaluation). After each round the student is retrained from scratch on all the data gathered so far.
 
@@ -43,6 +44,7 @@ from frbench.policies.checkpoint import read_checkpoint
 from frbench.robot_checks.lookup import get_robot
 from frbench.tasks.initial_states import draw_starts
 from frbench.terrains import make_terrain
+from frbench.training.dagger import teacher_acts, teacher_label
 from frbench.training.distill_data import ObservationHistory, load_rounds, read_meta, shard_path, write_shard
 from frbench.training.distill_student import (STUDENTS, build_actor, mixture_fit, save_student, student_actions,
                                               train_student)
@@ -147,7 +149,7 @@ class DAggerActor:
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         """Joint targets (N, J) [rad]: the teacher's where it acts, the student's elsewhere."""
         o_t, history = self.tracker.observe(obs)
-        label = np.asarray(self.teacher.act(obs)) - self.default_pose
+        label = teacher_label(self.teacher.act(obs), self.default_pose)
         action = label.copy()
         if self.student is not None and not self.teacher_acts.all():
             student = student_actions(self.student, o_t, history)
@@ -176,14 +178,10 @@ def collect_batch(run: Path, config: DistillConfig, round_index: int, b: int) ->
     spec = get_robot(config.robot)
     terrain = make_terrain(config.terrain, config.level, start_seed)
     starts = draw_starts(spec, terrain, config.terrain, config.level, start_seed, range(n))
-    if round_index == 0:
-        teacher_acts, student = np.ones(n, dtype=bool), None
-    else:
-        rng = np.random.default_rng([config.seed, round_index, b])
-        teacher_acts = rng.random(n) < config.beta
-        data = read_checkpoint(Path(run) / "checkpoints" / f"round{round_index - 1}.pt")
-        student = build_actor(data)
-    actor = DAggerActor(_teacher(config), student, teacher_acts, config.frames)
+    acting = teacher_acts(config.seed, round_index, b, n, config.beta)
+    student = (None if round_index == 0 else
+               build_actor(read_checkpoint(Path(run) / "checkpoints" / f"round{round_index - 1}.pt")))
+    actor = DAggerActor(_teacher(config), student, acting, config.frames)
     task = run_episodes(spec, simulator, terrain, starts, actor, seed=start_seed, steps=config.steps)
     diverged = task.metrics.diverged | task.settle_diverged
     success = task.success.success & ~diverged
@@ -192,7 +190,7 @@ def collect_batch(run: Path, config: DistillConfig, round_index: int, b: int) ->
     metas = []
     for i in range(n):
         meta = {"round": round_index, "batch": b, "episode": i, "simulator": simulator, "start_seed": start_seed,
-                "start": starts.kinds[i], "acted_by": "teacher" if teacher_acts[i] else "student",
+                "start": starts.kinds[i], "acted_by": "teacher" if acting[i] else "student",
                 "success": bool(success[i]), "samples": int(obs.shape[1]), "cpu_s": round(cpu_each, 3)}
         write_shard(shard_path(run, round_index, b, i), obs[i], history[i], labels[i], meta)
         metas.append(meta)

@@ -32,7 +32,10 @@ Observation groups (float32 TensorDict, N rows):
   flags, 4 foot force norms [N], friction];
 * ``mass`` (4) and ``contact`` (13): the estimator's labels (Pinocchio masses
   incl. payload; backend contact flags); ``velocity`` (3): base linear
-  velocity, body frame [m/s]; ``extrinsics`` (11): RMA's environment factors.
+  velocity, body frame [m/s]; ``extrinsics`` (11): RMA's environment factors;
+* ``teacher`` (only with ``TrainEnvConfig.teacher``, J + 3): the teacher's label, the imitation and PPO
+  weights, and whether the teacher acted (`frbench.training.teacher`); the env executes the label in the
+  episodes the teacher acts in.
 
 Action a (J) [-]: joint targets q* = q̊ + ``action_scale``·a, clipped to the
 joint limits (the paper's q* = q̊ + a with a scale, as legged_gym).
@@ -59,6 +62,7 @@ from frbench.training.population import TrainingRobots
 from frbench.training.residual import ResidualController
 from frbench.training.step_reward import StepReward
 from frbench.training.start_sources import CurriculumStarts
+from frbench.training.teacher import TEACHER_GROUP, EnvTeacher
 from frbench.training.terrain_grid import build_grid
 
 __all__ = ["RecoveryTrainingEnv", "TrainEnvConfig"]
@@ -101,6 +105,9 @@ class RecoveryTrainingEnv(VecEnv):
                             variants=self.robots.variants, ground_height=self._ground_height,
                             nominal_height=self.robots.nominal_height, track_metrics=False, surface_rules=False,
                             privileged=PrivilegedGroups(self.raster, self.starts, self.robots), joint_frame=frame)
+        #: the teacher labelling every control step (`frbench.training.teacher`), or None
+        self.teacher = (EnvTeacher(self.robots.specs, self.robots.assignment, policy_pose, frame, cfg.action_scale,
+                                   cfg.imitation_schedule()) if cfg.teacher else None)
         self.last_episode_stats: dict[str, float] = {}
         #: each reward term's mean per env step since the learning curve's last row (``reward_<term>``)
         self.reward_means = LossLog(prefix="reward_")
@@ -115,6 +122,13 @@ class RecoveryTrainingEnv(VecEnv):
     @env_steps.setter
     def env_steps(self, steps: int) -> None:
         self.core.env_steps = steps
+        if self.teacher is not None:  # a resumed run: the current episode's teacher and weights at its step
+            self.teacher.acting = self.teacher.schedule.acts(steps, self._episode_number(), self.num_envs)
+            self.teacher.weights = (self.teacher.schedule.imitation_weight(steps), self.teacher.schedule.rl_weight(steps))
+
+    def _episode_number(self) -> int:
+        """The run's episodes so far (all environments' episodes end together)."""
+        return int(self.core.env_steps // (self.num_envs * self.cfg_obj.episode_steps))
 
     @property
     def backend(self):
@@ -156,6 +170,8 @@ class RecoveryTrainingEnv(VecEnv):
     def get_observations(self) -> TensorDict:
         """The core env's observation groups (`CoreEnv.observation_groups`) as float32 tensors."""
         groups = self.core.observation_groups()
+        if self.teacher is not None:
+            groups[TEACHER_GROUP] = self.teacher.group()
         return TensorDict({k: torch.as_tensor(v, dtype=torch.float32) for k, v in groups.items()},
                           batch_size=[self.num_envs])
 
@@ -165,6 +181,8 @@ class RecoveryTrainingEnv(VecEnv):
         `TrainEnvConfig.action_hold` control steps (fewer if the episode ends first), their rewards summed."""
         n = self.num_envs
         action = np.clip(actions.detach().cpu().numpy().astype(np.float64), -10.0, 10.0)
+        if self.teacher is not None:
+            action = self.teacher.executed(action)
         reward, term_sums, alive = self.core.step(action)
         self.episode_length_buf += 1
         log = {f"/reward/{k}": _alive_mean(v, alive) / self.core.actions.held for k, v in term_sums.items()}
@@ -175,6 +193,8 @@ class RecoveryTrainingEnv(VecEnv):
             log.update({f"/episode/{k}": v for k, v in self.last_episode_stats.items()})
             log.update({f"/curriculum/{k}": float(v) for k, v in self.curriculum.stats().items()})
             self._new_episodes()
+        elif self.teacher is not None:
+            self.teacher.observe(self.core.observation(), self.env_steps)
         obs = self.get_observations()
         dones = torch.full((n,), bool(done))
         extras = {"time_outs": torch.full((n,), bool(done)), "log": log}
@@ -184,6 +204,8 @@ class RecoveryTrainingEnv(VecEnv):
         """New episodes for every environment (the core env's start distribution, `CurriculumStarts`)."""
         self.core.new_episodes()
         self.episode_length_buf.zero_()
+        if self.teacher is not None:
+            self.teacher.new_episodes(self.core.observation(), self.env_steps, self._episode_number())
 
     def close(self) -> None:
         """Free the simulator (the core env's)."""

@@ -98,6 +98,13 @@ _SYMMETRY_ASSIST_STEADY = replace(
                 "change, under which the mean action chatters on Go2 (docs/training.md)",
     algorithm=MappingProxyType({"entropy_coef": 0.005}))
 
+#: ``kickstart-scripted``'s timetable (`frbench.training.dagger.ImitationSchedule`, env steps): 3 M env steps of
+#: DAgger from ``scripted`` in 3 rounds (round 0 behaviour cloning, then the teacher acts in a quarter of the
+#: episodes), then PPO with the imitation weight falling from 1 to 0 at 12 M env steps.
+KICKSTART_SCRIPTED = MappingProxyType({
+    "teacher": "scripted", "dagger_steps": 3e6, "dagger_rounds": 3, "dagger_beta": 0.25, "imitation_weight": 1.0,
+    "imitation_until": 12e6})
+
 PRESETS: Mapping[str, Preset] = MappingProxyType({
     "paper": Preset("random morphologies on all terrains, the paper's setup (the defaults)"),
     "demo-starts": Preset(
@@ -120,6 +127,11 @@ PRESETS: Mapping[str, Preset] = MappingProxyType({
         description="symmetry-assist with the morphology table widened to hold the benchmark's quadrupeds "
                     "(benchmarks/morphology_coverage.py)",
         env=MappingProxyType({**_SYMMETRY_ASSIST.env, "morphology_ranges": COVERING_MORPHOLOGY_RANGES})),
+    "kickstart-scripted": Preset(
+        "DAgger from the scripted controller into FR-Net's actor, then PPO with an imitation term toward scripted's "
+        "action that decays to 0 (kickstarting; presets.KICKSTART_SCRIPTED, docs/training.md)",
+        env=KICKSTART_SCRIPTED, init_std=0.2,
+        algorithm=MappingProxyType({"class_name": "frbench.training.imitation:KickstartPPO"})),
     "no-stability": Preset(
         "demo-starts without the stability reward terms (the frnet-no-stability ablation)",
         env=_DEMO_STARTS, drop_terms=STABILITY_TERMS),

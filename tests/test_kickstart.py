@@ -1,0 +1,150 @@
+"""DAgger from ``scripted`` inside the training env, and kickstarting PPO (frbench.training.dagger, teacher,
+imitation; the ``kickstart-scripted`` preset)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import torch
+
+from frbench.policies.scripted import ScriptedPolicy
+from frbench.robots.joint_frame import JointFrame
+from frbench.training.config import TrainEnvConfig
+from frbench.training.dagger import ImitationSchedule, teacher_acts, teacher_label
+from frbench.training.imitation import ImitationLoss, imitation_loss
+from frbench.training.presets import KICKSTART_SCRIPTED, PRESETS
+
+
+def test_the_presets_schedule_numbers():
+    cfg = TrainEnvConfig(**KICKSTART_SCRIPTED)
+    s = cfg.imitation_schedule()
+    assert [s.round_at(x) for x in (0, 0.999e6, 1e6, 2e6, 2.999e6, 3e6, 20e6)] == [0, 0, 1, 2, 2, None, None]
+    assert [s.imitation_weight(x) for x in (0, 2.9e6, 3e6, 7.5e6, 10.5e6, 12e6, 30e6)] == pytest.approx(
+        [1.0, 1.0, 1.0, 0.5, 1 / 6, 0.0, 0.0])
+    assert [s.rl_weight(x) for x in (0, 2.999e6, 3e6, 12e6)] == [0.0, 0.0, 1.0, 1.0]
+    assert s.acts(0, 5, 64).all()  # round 0: behaviour cloning
+    round1 = np.mean([s.acts(1.5e6, e, 256).mean() for e in range(40)])
+    assert round1 == pytest.approx(0.25, abs=0.02)
+    assert not s.acts(3e6, 50, 64).any()
+    assert PRESETS["kickstart-scripted"].train_overrides()["algorithm"]["class_name"].endswith(":KickstartPPO")
+
+
+def test_the_dagger_draw_is_distills_rule_and_bad_values_name_their_field():
+    for r, b in ((1, 0), (2, 7)):  # the draw frbench distill made before the rule moved to dagger.py
+        expected = np.random.default_rng([3, r, b]).random(50) < 0.3
+        assert np.array_equal(teacher_acts(3, r, b, 50, 0.3), expected)
+    assert teacher_acts(3, 0, 1, 5, 0.0).all()
+    with pytest.raises(ValueError, match="dagger_beta"):
+        ImitationSchedule(dagger_steps=1, beta=1.5)
+    with pytest.raises(ValueError, match="dagger_rounds"):
+        TrainEnvConfig(teacher="scripted", dagger_steps=1e6, dagger_rounds=0)
+    with pytest.raises(ValueError, match="action_hold"):
+        TrainEnvConfig(teacher="scripted", action_hold=2)
+    with pytest.raises(ValueError, match="teacher"):
+        TrainEnvConfig(teacher="mpc")
+
+
+def test_a_label_is_the_teachers_target_in_the_canonical_frame():
+    rng = np.random.default_rng(0)
+    sign = tuple(float(s) for s in rng.choice([-1.0, 1.0], 12))
+    offset = tuple(float(o) for o in rng.uniform(-1, 1, 12))
+    frame = JointFrame("x", sign, offset, ("forward",) * 4, turned=True)
+    targets, pose = rng.normal(size=(5, 12)), rng.normal(size=12)
+    label = teacher_label(targets, pose, frame, scale=0.5)
+    assert np.allclose(frame.to_joints(0.5 * label + pose), targets)  # the action asks for the teacher's targets
+    assert np.allclose(label, (frame.to_canonical(targets) - pose) / 0.5)
+
+
+def test_env_labels_are_scripteds_actions_on_the_visited_observations_and_dagger_executes_them():
+    from frbench.training.env import RecoveryTrainingEnv
+
+    cfg = TrainEnvConfig(num_envs=6, num_morphologies=2, families=("flat",), episode_steps=20, settle_steps=5,
+                         teacher="scripted", dagger_steps=120, dagger_rounds=1, imitation_until=240, seed=1)
+    env = RecoveryTrainingEnv(cfg)
+    try:
+        replica = [ScriptedPolicy() for _ in env.specs]
+        groups = [np.flatnonzero(env.assignment == k) for k in range(len(env.specs))]
+        rng = np.random.default_rng(2)
+        obs = env.get_observations()
+        for step in range(45):  # three episodes: two of DAgger (teacher acts), one after
+            proprio = env.core.observation()
+            if env.step_count == 0:
+                for policy, spec, ids in zip(replica, env.specs, groups):
+                    policy.reset(spec, len(ids))
+            expected = np.zeros((6, 12))
+            for policy, ids in zip(replica, groups):
+                expected[ids] = policy.act({k: proprio[k][ids] for k in ("projected_gravity", "joint_pos")})
+            expected = expected - env.default_pose  # the morphologies' frame is the identity, scale 1
+            teacher = obs["teacher"].numpy()
+            assert np.allclose(teacher[:, :12], expected, atol=1e-5), step
+            dagger = env.env_steps < 120
+            assert teacher[0, 12:].tolist() == pytest.approx([1.0 if dagger else max(0.0, 1.0 - (env.env_steps - 120) / 120),
+                                                0.0 if dagger else 1.0, 1.0 if dagger else 0.0], abs=1e-6)
+            action = rng.normal(size=(6, 12))
+            obs, *_ = env.step(torch.as_tensor(action, dtype=torch.float32))
+            if env.step_count:  # (a new episode begins its actions at zero)
+                executed = env.core.actions.current
+                assert np.allclose(executed, teacher[:, :12] if dagger else action.astype(np.float32), atol=1e-6)
+    finally:
+        env.close()
+
+
+def test_the_imitation_term_pulls_the_mean_action_toward_the_label_with_its_weight():
+    mean = torch.tensor([[0.5, -1.0], [2.0, 0.0]], requires_grad=True)
+    teacher = torch.tensor([[0.0, 0.0, 2.0, 0.0, 1.0], [2.0, 1.0, 0.5, 1.0, 0.0]])
+    loss = imitation_loss(mean, teacher)
+    assert float(loss.detach()) == pytest.approx((2.0 * 1.25 + 0.5 * 1.0) / 2)
+    loss.backward()
+    # d/dμ of w·|μ − a*|² averaged over 2 rows: w·(μ − a*): a gradient step moves μ toward a*
+    assert torch.allclose(mean.grad, torch.tensor([[1.0, -2.0], [0.0, -0.5]]))
+    zero = torch.tensor([[0.3, 0.3]], requires_grad=True)
+    imitation_loss(zero, torch.tensor([[1.0, 1.0, 0.0, 1.0, 0.0]])).backward()
+    assert torch.equal(zero.grad, torch.zeros(1, 2))  # weight 0: no pull
+
+
+def test_imitation_loss_reads_the_actors_forward_pass():
+    from tensordict import TensorDict
+    from rsl_rl.models import MLPModel
+
+    torch.manual_seed(0)
+    obs = TensorDict({"policy": torch.randn(32, 4), "teacher": torch.cat(
+        [torch.ones(32, 2), torch.ones(32, 1), torch.zeros(32, 2)], dim=1)}, batch_size=[32])
+    actor = MLPModel(obs, {"actor": ["policy"]}, "actor", 2, hidden_dims=[8],
+                     distribution_cfg={"class_name": "GaussianDistribution", "init_std": 0.5})
+    optimizer = torch.optim.SGD(actor.parameters(), lr=0.05)
+    batch = type("Batch", (), {"observations": obs})()
+    losses = []
+    for _ in range(20):
+        actor(obs, stochastic_output=True)
+        loss = ImitationLoss().compute_loss(actor, batch, 32)
+        optimizer.zero_grad()
+        loss.backward()
+        optimizer.step()
+        losses.append(float(loss.detach()))
+    assert losses[-1] < 0.5 * losses[0]
+
+
+def test_a_tiny_kickstart_run_trains_logs_its_weights_and_writes_a_policy_evaluate_loads(tmp_path):
+    run = tmp_path / "run"
+    command = [sys.executable, "-m", "frbench", "train", "--method", "frnet", "--preset", "kickstart-scripted",
+               "--envs", "8", "--steps", "960", "--terrains", "flat", "--checkpoint-every", "1", "--out", str(run),
+               "--set", "num_morphologies=2", "--set", "episode_steps=24", "--set", "settle_steps=5",
+               "--set", "dagger_steps=384", "--set", "imitation_until=768"]
+    subprocess.run(command, check=True, capture_output=True)
+    progress = json.loads((run / "progress.json").read_text())
+    assert [r["env_steps"] for r in progress] == [192, 384, 576, 768, 960]
+    assert [r["loss_imitation_weight"] for r in progress] == pytest.approx(
+        [1.0, 1.0, np.mean([1 - (s - 384) / 384 for s in range(384, 576, 8)]),
+         np.mean([1 - (s - 384) / 384 for s in range(576, 768, 8)]), 0.0], rel=1e-5)
+    assert progress[0]["loss_surrogate"] == 0.0 and progress[-1]["loss_surrogate"] != 0.0
+    assert progress[0]["loss_imitation"] > 0 and progress[-1]["loss_imitation"] == 0.0
+    out = tmp_path / "eval.json"
+    subprocess.run([sys.executable, "-m", "frbench", "evaluate", "--policy", str(run), "--robots", "go2",
+                    "--terrains", "flat", "--levels", "1", "--seeds", "0", "--episodes", "1", "--backends", "mujoco",
+                    "--jobs", "1", "--out", str(out)], check=True, capture_output=True)
+    result = json.loads(out.read_text())
+    assert len(result["episodes"]) == 1 and result["policy"]["joint_frame"] == "canonical"
