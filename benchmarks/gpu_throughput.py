@@ -1,8 +1,9 @@
-"""Throughput of the trainer that stays on the device (`frbench.training.device_env`), split by phase.
+"""Throughput of the training env on MuJoCo Warp's worlds (`frbench.training.env.RecoveryTrainingEnv` on
+``mujoco-warp``, its arrays torch tensors on the device), split by phase.
 
 For each batch size N: env steps per second of
 
-* bare Warp stepping (one control period of every world, ``DeviceTrainingEnv.advance``, nothing else);
+* bare Warp stepping (one control period of every world, the backend's ``advance``, nothing else);
 * the environment (random actions through ``step``: targets, physics, observations, privileged groups, rewards,
   success, divergence, episode ends with bank resets and the curriculum), with its time split into physics and
   environment work, and its ratio to bare stepping; resets: one episode end's bank draw and refill timed on its
@@ -13,7 +14,8 @@ For each batch size N: env steps per second of
 the time to set the worlds up (``setup_s``: model and data put on the device, the first resets; with an empty
 kernel cache, ``--fresh-kernel-cache``, the compile of the kernels those run) and of the first control period
 (the step's kernels compiled or loaded, on a GPU the CUDA graph captured). Robots: Go2 with sampled morphologies on the training terrain grid (``go2``) and the G1
-(``g1``), from bundles built here (`device_bundle.build_bundle`) or given (``--bundle``), resized to each N.
+(``g1``), from device bundles built here (`device_bundle.build_bundle`, one settled start per tile and robot) or
+given (``--bundle``), resized to each N; the env is built from the bundle's parts (`device_bundle.bundle_parts`).
 
     python benchmarks/gpu_throughput.py --device cpu --toy [--fresh-kernel-cache]  # 4 and 8 envs on Warp's CPU
     python benchmarks/gpu_throughput.py --device cuda --envs 256,1024,4096,8192 --bundle bundles/go2 --bundle-g1 bundles/g1
@@ -33,8 +35,8 @@ import numpy as np
 import torch
 
 from frbench.io import atomic_write_text
-from frbench.training.device_bundle import build_bundle, load_bundle, resized
-from frbench.training.device_env import DeviceTrainingEnv
+from frbench.training.device_bundle import build_bundle, bundle_parts, load_bundle, resized
+from frbench.training.env import RecoveryTrainingEnv
 
 #: The bundles built when none is given: Go2 with sampled morphologies on every terrain family, and the G1.
 CONFIGS = {"go2": {"num_morphologies": 32}, "g1": {"robot": "g1"}}
@@ -71,23 +73,25 @@ def measure(bundle, n: int, device: str, steps: int, iterations: int, method: st
 
     _sync(device)
     start = time.perf_counter()
-    env = DeviceTrainingEnv(resized(bundle, n), device, seed=0)  # model and data put, first resets (kernels loaded)
+    sized = resized(bundle, n)  # model and data put, first resets (kernels loaded)
+    env = RecoveryTrainingEnv(sized.config, device, bundle_parts(sized))
     _sync(device)
     setup = time.perf_counter() - start
     try:
         _sync(device)
         start = time.perf_counter()
-        env.advance()  # the first control period: kernels compiled or loaded, the graph captured
+        backend = env.backend
+        backend.advance()  # the first control period: kernels compiled or loaded, the graph captured
         _sync(device)
         first = time.perf_counter() - start
         bare = _Timer(device)
-        advance = bare.wrap(env.advance)
+        advance = bare.wrap(backend.advance)
         for _ in range(steps):
             advance()
         env._new_episodes()
         physics, resets, whole = _Timer(device), _Timer(device), _Timer(device)
-        raw_advance, raw_reset = env.advance, env._new_episodes
-        env.advance, env._new_episodes = physics.wrap(raw_advance), resets.wrap(raw_reset)
+        raw_advance, raw_reset = backend.advance, env._new_episodes
+        backend.advance, env._new_episodes = physics.wrap(raw_advance), resets.wrap(raw_reset)
         step = whole.wrap(env.step)
         gen = torch.Generator(device=env.device).manual_seed(1)
         for _ in range(steps):
@@ -106,7 +110,7 @@ def measure(bundle, n: int, device: str, steps: int, iterations: int, method: st
                "share_env_work": round(1 - (physics.total + before) / env_time, 3),
                "reset_s": round(reset_s, 4),
                "share_resets_per_episode": round(reset_s / (reset_s + per_episode), 4)}
-        env.advance, env._new_episodes = raw_advance, raw_reset
+        backend.advance, env._new_episodes = raw_advance, raw_reset
         if iterations:
             train_cfg = estimator_sized_for(make_train_cfg(method), env.env_masses.shape[1],
                                             len(env.spec.contact_groups), env.env_masses[0])
@@ -167,11 +171,11 @@ def main(argv=None) -> int:
             if robot == "go2" and args.morphologies:
                 fields["num_morphologies"] = args.morphologies
             start = time.perf_counter()
-            bundle = build_bundle(TrainEnvConfig(num_envs=max(sizes), **fields), starts_per_cell=1,
+            bundle = build_bundle(TrainEnvConfig(num_envs=max(sizes), backend="mujoco-warp", start_bank=1, **fields),
                                   log=lambda *a: print(*a, file=sys.stderr))
             print(f"{robot}: bundle built in {time.perf_counter() - start:.0f} s", file=sys.stderr)
         for n in sizes:
-            row = {"robot": robot, "variants": int(np.max(bundle.arrays["assignment"])) + 1,
+            row = {"robot": robot, "variants": int(np.max(bundle.arrays["robots/assignment"])) + 1,
                    "families": len(bundle.meta["config"]["families"]),
                    **measure(bundle, n, args.device, steps, iterations)}
             results.append(row)

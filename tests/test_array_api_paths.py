@@ -1,4 +1,4 @@
-"""The observation, reward and success code is one implementation for numpy and torch (`frbench.tasks.arrays`):
+"""The observation, reward and success code is one implementation for numpy and torch (`frbench.arrays`):
 on the same states the two paths agree term by term — every observation block, every privileged group, every
 reward term and the success test — in float64 to round-off and in float32 (the device trainer's dtype) to
 float32 precision."""

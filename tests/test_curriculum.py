@@ -155,20 +155,22 @@ def test_moved_levels_is_one_rule_for_numpy_and_torch():
     assert (level + (rate >= 0.6) > 10).sum() > 0  # the redraw branch is exercised
 
 
-def test_device_curriculum_moves_levels_as_the_cpu_curriculum():
+def test_successes_from_a_device_move_the_one_curriculum_as_numpys_do_redraw_included():
+    """The device trainer hands the curriculum its successes as torch tensors once per episode: the same class moves
+    the same levels as with numpy successes, from the same generator (the top level's redraw included), and its
+    state is the same."""
     import torch
 
-    from frbench.training.device_env import DeviceCurriculum
-
-    cpu = make(32, seed=5)
-    device = DeviceCurriculum(cpu.families, torch.tensor(cpu.family), torch.tensor(cpu.level),
-                              torch.Generator().manual_seed(0))
+    host, device = make(32, seed=5), make(32, seed=5)
     rng = np.random.default_rng(9)
-    for _ in range(150):  # success rate 0.3: levels stay below the top, so neither redraws
-        judged = rng.random(32) < 0.5
-        success = rng.random(32) < 0.3
-        cpu.update(np.flatnonzero(judged), success[judged])
+    redrawn = 0
+    for _ in range(150):  # success rate 0.7: levels reach the top and are redrawn from there
+        judged = np.flatnonzero(rng.random(32) < 0.5)
+        success = rng.random(judged.size) < 0.7
+        at_top = host.level[judged] == host.max_level
+        host.update(judged, success)
         device.update(torch.as_tensor(judged), torch.as_tensor(success))
-        np.testing.assert_array_equal(device.level.numpy(), cpu.level)
-        assert cpu.level.max() < cpu.max_level
-    assert len(set(cpu.level.tolist())) >= 3
+        redrawn += int((at_top & success).sum())
+        np.testing.assert_array_equal(device.level, host.level)
+    assert redrawn > 10
+    assert device.state_dict() == host.state_dict()

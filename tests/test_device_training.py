@@ -1,6 +1,8 @@
-"""The trainer that stays on the device (`frbench.training.device_env`) on Warp's CPU device: a tiny run (4
-worlds, 2 PPO iterations) through ``frbench train --backend mujoco-warp`` gives a checkpoint that ``frbench
-evaluate`` loads and scores; the bundle round-trips; the device env's groups are the numpy code's numbers."""
+"""One training env for every simulator and device: ``mujoco-warp`` on Warp's CPU device runs the env's code on torch
+tensors, the CPU simulators on numpy arrays. On the same states the two paths give the same observation groups and
+reward terms, the same curriculum moves (its redraw included), episode statistics and per-episode draws; a tiny
+``frbench train --backend mujoco-warp --device cpu`` run logs the CPU run's curve columns, resumes and evaluates;
+a device bundle rebuilds the env the CPU builds."""
 
 import json
 
@@ -10,25 +12,37 @@ import torch
 
 pytest.importorskip("mujoco_warp")
 
+from frbench.backends.base import RobotState  # noqa: E402
 from frbench.cli import main  # noqa: E402
-from frbench.tasks.observations import flatten, proprioception  # noqa: E402
 from frbench.training.config import TrainEnvConfig  # noqa: E402
-from frbench.training.device_bundle import build_bundle, load_bundle, save_bundle  # noqa: E402
-from frbench.training.device_env import DeviceTrainingEnv  # noqa: E402
+from frbench.training.env import RecoveryTrainingEnv  # noqa: E402
 
 TINY = ["--envs", "4", "--terrains", "flat", "--set", "num_morphologies=2", "--set", "episode_steps=30",
         "--set", "settle_steps=5"]
+FIELDS = ("base_pos", "base_quat", "base_linvel", "base_angvel", "q", "qd")
+#: Two families, sampled morphologies and randomised physics: every part of the env that differs per environment.
+CONFIG = dict(num_envs=4, num_morphologies=2, families=("flat", "stairs"), episode_steps=6, settle_steps=5, seed=3)
 
 
-def test_a_tiny_device_run_resumes_and_gives_a_checkpoint_that_evaluate_scores(tmp_path):
-    run = tmp_path / "run"
+def _host(state) -> RobotState:
+    return RobotState(**{k: getattr(state, k).double().numpy().copy() for k in FIELDS})
+
+
+def test_a_tiny_device_run_logs_the_cpu_runs_columns_resumes_and_evaluates(tmp_path):
+    cpu, run = tmp_path / "cpu", tmp_path / "run"
+    assert main(["train", "--steps", "192", "--checkpoint-every", "1", "--out", str(cpu), *TINY]) == 0
     assert main(["train", "--backend", "mujoco-warp", "--device", "cpu", "--steps", "192", "--checkpoint-every", "1",
                  "--out", str(run), *TINY]) == 0
     config = json.loads((run / "config.json").read_text())
     assert config["env"]["backend"] == "mujoco-warp" and config["env"]["num_envs"] == 4
     curve = (run / "curve.csv").read_text().splitlines()
     assert len(curve) == 3 and curve[2].startswith("2,192,")  # two iterations of 4 envs x 24 steps
-    # --resume continues it on the device (its backend from config.json, --device as given), curriculum restored
+    header = curve[0].split(",")
+    assert header == (cpu / "curve.csv").read_text().splitlines()[0].split(",")  # the CPU run's columns
+    assert {"level_flat", "level_at_max", "mean_level", "success_flat", "reward_upright_orientation"} <= set(header)
+    # --resume continues it (its backend from config.json, --device as given), curriculum and generator restored
+    state = torch.load(run / "state.pt", weights_only=False)
+    assert set(state["curriculum"]) >= {"version", "rng", "level", "family"}  # TerrainCurriculum's state
     assert main(["train", "--resume", str(run), "--steps", "288", "--device", "cpu", "--checkpoint-every", "1"]) == 0
     assert (run / "curve.csv").read_text().splitlines()[-1].startswith("3,288,")
     out = tmp_path / "eval.json"
@@ -37,97 +51,211 @@ def test_a_tiny_device_run_resumes_and_gives_a_checkpoint_that_evaluate_scores(t
     assert len(json.loads(out.read_text())["episodes"]) == 1
 
 
-def test_the_bundle_round_trips_and_the_device_groups_are_the_numpy_codes(tmp_path):
-    cfg = TrainEnvConfig(num_envs=4, num_morphologies=2, families=("flat", "stairs"), episode_steps=12,
-                         settle_steps=5, seed=3)
-    bundle = build_bundle(cfg, starts_per_cell=1, log=lambda *_: None)
+def test_a_device_on_a_cpu_simulator_and_an_unknown_device_are_one_line_errors(tmp_path, capsys):
+    for flags, message in ((["--device", "cuda:99", "--backend", "mujoco-warp"], "--device cuda:99: torch sees"),
+                           (["--device", "tpu"], "--device 'tpu': expected cpu, cuda or cuda:N"),
+                           (["--bundle", str(tmp_path)], f"--bundle {tmp_path}: this run trains in mujoco")):
+        assert main(["train", "--steps", "96", "--out", str(tmp_path / "never"), *TINY, *flags]) == 2
+        err = capsys.readouterr().err.strip()
+        assert message in err and len(err.splitlines()) == 1
+    assert not (tmp_path / "never").exists()
+
+
+class TorchView:
+    """A CPU simulator handing out its arrays as torch tensors of ``dtype`` on the CPU (a test's device backend):
+    the training env on it runs its torch path on the states the numpy path sees."""
+
+    device_arrays = True
+
+    def __init__(self, backend, dtype):
+        self.backend, self.dtype = backend, dtype
+
+    def __getattr__(self, name):
+        return getattr(self.backend, name)
+
+    def _t(self, x):
+        return torch.as_tensor(np.asarray(x), dtype=self.dtype if np.asarray(x).dtype.kind == "f" else None)
+
+    @property
+    def diverged(self):
+        return self._t(self.backend.diverged)
+
+    def state(self):
+        state = self.backend.state()
+        return RobotState(**{k: self._t(getattr(state, k)) for k in (*FIELDS, "tau")})
+
+    def contacts(self):
+        from frbench.backends.base import summarize_contacts
+
+        return summarize_contacts(self.spec, self.link_names, self._t(self.backend.contacts().link_force))
+
+    def whole_body_com(self):
+        return self._t(self.backend.whole_body_com())
+
+    def step(self, targets):
+        self.backend.step(targets.numpy() if isinstance(targets, torch.Tensor) else targets)
+
+    def reset(self, ids, state):
+        self.backend.reset(np.asarray(ids), state.on_host())
+
+
+def test_both_array_paths_agree_on_the_same_states_term_by_term(monkeypatch):
+    """The training env's numpy path and its torch path on MuJoCo C, one config and seed: the torch env's
+    simulator hands out torch tensors (float64, `TorchView`), and the targets it computes in torch are the numpy
+    path's bit for bit, so both envs visit the same states. Every observation group, reward term, reward and
+    reward-term mean agrees to round-off at every step of an episode; the same draws (robots, families, levels,
+    tiles, per-episode physics: one generator, one order); at the episode end (every environment succeeding at the
+    top level) the same curriculum redraw, statistics and next physics."""
+    import frbench.tasks.core_env as core_env
+
+    numpy_env = RecoveryTrainingEnv(TrainEnvConfig(**CONFIG))
+    make = core_env.make_backend
+    monkeypatch.setattr(core_env, "make_backend", lambda *a, **k: TorchView(make(*a, **k), torch.float64))
+    torch_env = RecoveryTrainingEnv(TrainEnvConfig(**CONFIG))
+    try:
+        assert not numpy_env.device_arrays and torch_env.device_arrays
+        assert isinstance(torch_env.core.state.q, torch.Tensor) and isinstance(numpy_env.core.state.q, np.ndarray)
+        np.testing.assert_array_equal(torch_env.robots.assignment, numpy_env.robots.assignment)
+        np.testing.assert_array_equal(torch_env.curriculum.family, numpy_env.curriculum.family)
+        np.testing.assert_array_equal(torch_env.starts.tile_row, numpy_env.starts.tile_row)
+        for name in ("kp", "kd", "motor_strength", "motor_friction", "friction", "payload"):  # the draws
+            np.testing.assert_array_equal(getattr(torch_env.params, name), getattr(numpy_env.params, name))
+        terms = {}
+        for name, env in (("numpy", numpy_env), ("torch", torch_env)):
+            reward_of = env.core.reward
+
+            def capture(*args, reward_of=reward_of, name=name):
+                terms[name] = reward_of(*args)
+                return terms[name]
+
+            env.core.reward = capture
+        rng = np.random.default_rng(0)
+        for step in range(CONFIG["episode_steps"]):
+            groups = numpy_env.get_observations(), torch_env.get_observations()
+            assert set(groups[0].keys()) == set(groups[1].keys())
+            for key in groups[0].keys():
+                want, got = (g[key].numpy() for g in groups)
+                np.testing.assert_allclose(got, want, rtol=1e-6, atol=1e-6, err_msg=f"{key} at step {step}")
+            np.testing.assert_array_equal(torch_env.core.state.q.numpy(), numpy_env.core.state.q)  # same states
+            action = torch.as_tensor(rng.normal(0, 0.5, (4, 12)), dtype=torch.float32)
+            if step == CONFIG["episode_steps"] - 1:  # the last step: every environment at the top level succeeds
+                for env in (numpy_env, torch_env):
+                    env.curriculum.level[:] = env.curriculum.max_level
+                    env.core.task.success.success = env.core.task.success.success | True
+            _, numpy_reward, _, _ = numpy_env.step(action)
+            _, torch_reward, done, _ = torch_env.step(action)
+            (_, want, _), (_, got, _) = terms["numpy"], terms["torch"]
+            assert set(got) == set(want)
+            for name, values in want.items():
+                assert isinstance(got[name], torch.Tensor) and got[name].dtype == torch.float64
+                np.testing.assert_allclose(got[name].numpy(), values, rtol=1e-10, atol=1e-12,
+                                           err_msg=f"{name} at step {step}")
+            np.testing.assert_allclose(torch_reward.numpy(), numpy_reward.numpy(), rtol=1e-6, atol=1e-7)
+        assert bool(done.all())
+        assert torch_env.last_episode_stats == numpy_env.last_episode_stats
+        assert torch_env.last_episode_stats["success_all"] == 1.0
+        assert torch_env.last_curriculum_stats == numpy_env.last_curriculum_stats
+        means = torch_env.reward_means.means(), numpy_env.reward_means.means()
+        assert means[0].keys() == means[1].keys() and means[1]
+        np.testing.assert_allclose(list(means[0].values()), list(means[1].values()), rtol=1e-9, atol=2e-6)
+        assert (torch_env.curriculum.level < torch_env.curriculum.max_level).any()  # redrawn from the top level
+        assert torch_env.curriculum.state_dict() == numpy_env.curriculum.state_dict()  # the same redraw
+        np.testing.assert_array_equal(torch_env.starts.tile_row, numpy_env.starts.tile_row)
+        for name in ("kp", "kd", "motor_strength", "motor_friction"):  # the next episode's draws
+            np.testing.assert_array_equal(getattr(torch_env.params, name), getattr(numpy_env.params, name))
+        np.testing.assert_array_equal(torch_env.core.state.q.numpy(), numpy_env.core.state.q)
+    finally:
+        numpy_env.close()
+        torch_env.close()
+
+
+def test_the_warp_devices_float32_tensors_agree_with_its_host_arrays(monkeypatch):
+    """MuJoCo Warp on its CPU device, once handing the env float32 torch tensors (training) and once float64 numpy
+    copies (the CPU simulators' path): the same draws and settled states, every observation group at t = 0 and
+    every reward term of the first step equal to float32 precision, the per-episode physics in the worlds."""
+    import frbench.training.env as env_module
+
+    torch_env = RecoveryTrainingEnv(TrainEnvConfig(**CONFIG, backend="mujoco-warp"), "cpu")
+    monkeypatch.setattr(env_module, "DEVICE_SIMULATORS", ())  # the same simulator, its arrays on the host
+    numpy_env = RecoveryTrainingEnv(TrainEnvConfig(**CONFIG, backend="mujoco-warp"))
+    try:
+        assert not numpy_env.device_arrays and torch_env.device_arrays and torch_env.device == "cpu"
+        assert torch_env.core.state.q.dtype == torch.float32
+        np.testing.assert_array_equal(torch_env.core.state.q.double().numpy(), numpy_env.core.state.q)
+        p = numpy_env.params
+        np.testing.assert_array_equal(torch_env.params.kp, p.kp)
+        gain = torch_env.backend._fields["actuator_gainprm"][:, :12, 0].double().numpy()
+        np.testing.assert_allclose(gain, p.motor_strength * p.kp, rtol=1e-6)  # written into the worlds
+        groups = numpy_env.get_observations(), torch_env.get_observations()
+        for key in groups[0].keys():
+            np.testing.assert_allclose(groups[1][key].numpy(), groups[0][key].numpy(), rtol=2e-5, atol=2e-5,
+                                       err_msg=key)
+        terms = {}
+        for name, env in (("numpy", numpy_env), ("torch", torch_env)):
+            reward_of = env.core.reward
+            env.core.reward = lambda *args, reward_of=reward_of, name=name: terms.setdefault(name, reward_of(*args))
+        action = torch.as_tensor(np.random.default_rng(0).normal(0, 0.5, (4, 12)), dtype=torch.float32)
+        numpy_env.step(action)
+        torch_env.step(action)
+        (_, want, _), (_, got, _) = terms["numpy"], terms["torch"]
+        for name, values in want.items():
+            assert got[name].dtype == torch.float32
+            np.testing.assert_allclose(got[name].double().numpy(), values, rtol=1e-4, atol=1e-6, err_msg=name)
+    finally:
+        numpy_env.close()
+        torch_env.close()
+
+
+def test_episode_statistics_omit_families_without_environments_on_either_path():
+    cfg = dict(CONFIG, num_envs=2, families=("flat", "stairs", "rough"), episode_steps=2)
+    for backend, device in (("mujoco", None), ("mujoco-warp", "cpu")):
+        env = RecoveryTrainingEnv(TrainEnvConfig(**cfg, backend=backend), device)
+        try:
+            for _ in range(2):
+                env.step(torch.zeros(2, 12))
+            families = {f for f in cfg["families"] if (env.curriculum.family == cfg["families"].index(f)).any()}
+            assert len(families) == 2
+            assert {k for k in env.last_episode_stats if k.startswith("success_") and k != "success_all"} == \
+                {f"success_{f}" for f in families}, backend
+            assert set(env.last_curriculum_stats) == {"level_at_max"} | {f"level_{f}" for f in families}
+        finally:
+            env.close()
+
+
+def test_a_bundle_rebuilds_the_env_the_cpu_builds_and_episodes_begin_at_bank_starts(tmp_path):
+    """The bundle's parts (robots, rasters, curriculum, generators, bank, compiled world), saved and loaded, give the
+    env that `build_parts` gives: the same first observations and draws; each episode begins at a bank entry of
+    its (tile, robot variant) cell, without a settle."""
+    from frbench.training.device_bundle import build_bundle, bundle_parts, load_bundle, save_bundle
+
+    cfg = TrainEnvConfig(**CONFIG, backend="mujoco-warp", start_bank=1)
+    bundle = build_bundle(cfg, log=lambda *_: None)
     loaded = load_bundle(save_bundle(bundle, tmp_path / "bundle"))
     assert loaded.config == cfg and set(loaded.arrays) == set(bundle.arrays)
-    assert len(loaded.arrays["bank_tile"]) == 20 * 2  # every tile, every variant once (none diverged)
-    np.testing.assert_array_equal(loaded.arrays["bank_qpos"], bundle.arrays["bank_qpos"])
-    env = DeviceTrainingEnv(loaded, "cpu", seed=0)
+    assert len(loaded.arrays["bank/tile"]) == 20 * 2  # every tile, every variant once (none diverged)
+    direct, from_bundle = RecoveryTrainingEnv(cfg, "cpu"), RecoveryTrainingEnv(cfg, "cpu", bundle_parts(loaded))
     try:
-        rng = np.random.default_rng(0)
-        for _ in range(12):  # one whole episode, then the new episodes' first observation
-            obs = env.get_observations()
-            state = env.state
-            host = type(state)(**{k: getattr(state, k).double().numpy() for k in
-                                  ("base_pos", "base_quat", "base_linvel", "base_angvel", "q", "qd")})
-            o_t = flatten(proprioception(host, env.targets.double().numpy()), np.asarray(env.spec.default_pose))
-            o_t[:, -env.num_actions:] = env.action.numpy()
-            np.testing.assert_allclose(obs["policy"].numpy(), o_t, rtol=1e-5, atol=1e-5)
-            assert obs["privileged"].shape == (4, 277) and torch.isfinite(obs["privileged"]).all()
-            np.testing.assert_allclose(obs["mass"].numpy(), loaded.arrays["masses"], rtol=1e-6)
-            _, reward, done, _ = env.step(torch.as_tensor(rng.normal(0, 0.5, (4, env.num_actions)), dtype=torch.float32))
-            assert reward.shape == (4,) and torch.isfinite(reward).all()
-        assert bool(done.all()) and env.t == 0 and set(env.last_episode_stats) >= {"success_all", "success_flat"}
-        assert env.curriculum.level.min() >= 1
+        for env in (direct, from_bundle):
+            bank, starts = env.starts.bank, env.starts
+            cell = (bank.tile[bank._order] * bank.num_variants + bank.variant[bank._order])
+            assert ((bank.cell_count == 1) | (bank.cell_count == 2)).all() and len(cell) == 40
+            state = env.core.state
+            rows = bank.entries(np.random.default_rng(0), starts.tile_row, env.robots.assignment)
+            assert (bank.tile[rows] == starts.tile_row).all()
+            # each environment sits at its cell's one entry (float32 in the worlds), velocities as recorded
+            np.testing.assert_allclose(state.base_pos.double().numpy(), bank.states.base_pos[rows], atol=1e-6)
+            np.testing.assert_allclose(state.qd.double().numpy(), bank.states.qd[rows], atol=1e-5)
+        for name in ("policy", "privileged", "mass"):
+            np.testing.assert_array_equal(direct.get_observations()[name].numpy(),
+                                          from_bundle.get_observations()[name].numpy())
+        np.testing.assert_array_equal(direct.params.kp, from_bundle.params.kp)
+        assert direct.rng.bit_generator.state == from_bundle.rng.bit_generator.state
     finally:
-        env.close()
+        direct.close()
+        from_bundle.close()
 
 
-def test_the_device_env_and_the_cpu_trainer_agree_on_the_same_states_and_physics():
-    """The CPU trainer (MuJoCo C, numpy) restarted on the device env's (Warp, torch) states with the bundle's physics:
-    the groups at t = 0 equal to float32 (the foot forces aside: one forward pass from a cold solver gives
-    another split of the support force), every reward term over three steps within the two simulators' drift
-    (measured: 1e-7 relative after one step, below 1e-2 after three)."""
-    from frbench.backends.base import PhysicsParams, RobotState
-    from frbench.training.env import RecoveryTrainingEnv
-
-    cfg = TrainEnvConfig(num_envs=4, num_morphologies=2, families=("flat", "stairs"), episode_steps=12,
-                         settle_steps=5, seed=3)
-    bundle = build_bundle(cfg, starts_per_cell=1, log=lambda *_: None)
-    a = bundle.arrays
-    device_env, cpu_env = DeviceTrainingEnv(bundle, "cpu", seed=0), RecoveryTrainingEnv(cfg)
-    try:
-        assert a["assignment"].tolist() == cpu_env.robots.assignment.tolist()
-        assert a["family"].tolist() == cpu_env.curriculum.family.tolist()
-        params = PhysicsParams(*(a[k].copy() for k in ("kp", "kd", "motor_strength", "friction", "payload",
-                                                       "motor_friction")))
-        cpu_env.core.task.params = params
-        cpu_env.core.backend.set_params(params)
-        s = device_env.state
-        cpu_env.core.restart(np.arange(4), RobotState(**{k: getattr(s, k).double().numpy().copy() for k in
-                                                         ("base_pos", "base_quat", "base_linvel", "base_angvel", "q",
-                                                          "qd")}))
-        assert device_env.tile.tolist() == cpu_env.starts.tile_row.tolist()
-        cpu_groups, device_groups = cpu_env.get_observations(), device_env.get_observations()
-        feet = slice(277 - 5, 277 - 1)  # the privileged view's foot forces (then friction)
-        for key in ("policy", "privileged", "mass", "contact", "velocity", "extrinsics"):
-            expected, got = cpu_groups[key].numpy(), device_groups[key].numpy()
-            if key == "privileged":
-                expected, got = np.delete(expected, np.r_[feet], axis=1), np.delete(got, np.r_[feet], axis=1)
-            np.testing.assert_allclose(got, expected, rtol=1e-5, atol=2e-6, err_msg=key)
-        captured, reward_of = [], cpu_env.core.reward
-
-        def capture(*args):
-            captured.append(reward_of(*args))
-            return captured[-1]
-
-        cpu_env.core.reward = capture
-        rng = np.random.default_rng(0)
-        for _ in range(3):
-            action = torch.as_tensor(rng.normal(0, 0.5, (4, 12)), dtype=torch.float32)
-            _, cpu_reward, _, _ = cpu_env.step(action)
-            _, device_reward, _, _ = device_env.step(action)
-            terms = captured[-1][1]
-            assert set(terms) == set(device_env.last_terms)
-            for name, values in terms.items():
-                np.testing.assert_allclose(device_env.last_terms[name].double().numpy(), values, rtol=2e-2, atol=2e-4,
-                                           err_msg=name)
-            np.testing.assert_allclose(device_reward.numpy(), cpu_reward.numpy(), rtol=2e-2, atol=5e-4)
-        # after the steps: the height scan, the CoM (Warp's kinematics of the new state) and the contact flags
-        # (measured: 5e-5 m, 2.5e-4 m, equal)
-        cpu_view, device_view = cpu_env.get_observations()["privileged"], device_env.get_observations()["privileged"]
-        for block, tolerance in ((slice(42, 229), 1e-3), (slice(257, 259), 2e-3), (slice(259, 272), 0.0)):
-            np.testing.assert_allclose(device_view[:, block].numpy(), cpu_view[:, block].numpy(), rtol=0,
-                                       atol=tolerance)
-    finally:
-        device_env.close()
-        cpu_env.close()
-
-
-def test_the_gpu_run_trains_the_symmetry_recipe_without_demo_starts_and_refused_settings_are_named():
+def test_the_gpu_run_trains_from_a_bundle_of_its_own_flags():
     import importlib.util
     from pathlib import Path
 
@@ -136,44 +264,16 @@ def test_the_gpu_run_trains_the_symmetry_recipe_without_demo_starts_and_refused_
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     cfg = module.training_config()
-    assert (cfg.backend, cfg.num_envs, cfg.demo_start_fraction, cfg.action_hold) == ("mujoco-warp", 4096, 0.0, 1)
-    # the symmetry preset's demo starts: a one-line error naming the field, exit status 2, before any work
-    assert main(["train", "--backend", "mujoco-warp", "--device", "cpu", "--preset", "symmetry", "--steps", "96",
-                 "--out", "/nonexistent/never-written", *TINY]) == 2
+    assert (cfg.backend, cfg.num_envs, cfg.start_bank) == ("mujoco-warp", 4096, 8)
 
 
-def test_each_episode_redraws_the_physics_on_the_device_as_the_cpu_writes_it():
-    from frbench.backends.base import MOTOR_FRICTION_VELOCITY, PhysicsParams
-    from frbench.backends.mujoco_backend import write_actuator_fields, write_actuator_params
-
-    rng = np.random.default_rng(0)
-    n, j, nu = 5, 12, 24
-    params = PhysicsParams(kp=rng.uniform(20, 80, (n, j)), kd=rng.uniform(0.6, 2, (n, j)),
-                           motor_strength=rng.uniform(0.9, 1.1, (n, j)), friction=np.ones(n), payload=np.zeros(n),
-                           motor_friction=rng.uniform(0.2, 1.25, (n, j)))
-    limits = rng.uniform(20, 40, j)
-    fields = [rng.normal(size=shape) for shape in ((n, nu, 10), (n, nu, 10), (n, nu, 2))]
-    expected = [f.copy() for f in fields]
-    write_actuator_params(*expected, params, limits)
-    got = [torch.as_tensor(f) for f in fields]
-    write_actuator_fields(*got, *(torch.as_tensor(a) for a in (params.kp, params.kd, params.motor_strength,
-                                                               params.motor_friction, limits)), MOTOR_FRICTION_VELOCITY)
-    for e, g in zip(expected, got):  # one formula: torch on the device writes the bytes numpy writes
-        np.testing.assert_array_equal(g.numpy(), e)
-
-    cfg = TrainEnvConfig(num_envs=4, num_morphologies=2, families=("flat",), episode_steps=2, settle_steps=5, seed=4)
-    bundle = build_bundle(cfg, starts_per_cell=1, log=lambda *_: None)
-    env = DeviceTrainingEnv(bundle, "cpu", seed=0)
-    try:
-        first = env.kp.clone()
-        np.testing.assert_array_equal(first.numpy(), bundle.arrays["kp"].astype(np.float32))  # the CPU trainer's draw
-        for _ in range(2):  # one episode
-            env.step(torch.zeros(4, env.num_actions))
-        kp, gain = env.kp, env._gain[:, :env.num_actions, 0]
-        assert not torch.equal(kp, first)
-        assert float(kp.min()) >= 20.0 and float(kp.max()) <= 80.0
-        assert torch.equal(kp, kp[:, :1].expand(-1, 12))  # one Kp per environment for sampled morphologies
-        torch.testing.assert_close(gain, (env.motor_strength * kp).float())
-        assert float(env.motor_strength.min()) >= 0.9 and float(env.motor_strength.max()) <= 1.1
-    finally:
-        env.close()
+@pytest.mark.cuda
+def test_a_tiny_run_on_a_cuda_device_resumes_on_the_cpu(tmp_path):
+    """On a machine with CUDA: the env's tensors and the worlds on the GPU, the run's state resumed on the CPU."""
+    if not torch.cuda.is_available():
+        pytest.skip("no CUDA device")
+    run = tmp_path / "run"
+    assert main(["train", "--backend", "mujoco-warp", "--device", "cuda", "--steps", "96", "--checkpoint-every", "1",
+                 "--out", str(run), *TINY]) == 0
+    assert main(["train", "--resume", str(run), "--steps", "192", "--device", "cpu", "--checkpoint-every", "1"]) == 0
+    assert (run / "curve.csv").read_text().splitlines()[-1].startswith("2,192,")

@@ -4,6 +4,7 @@ actuation, contacts and per-world parameters; divergence and buffer overflows fl
 
 from __future__ import annotations
 
+import json
 import logging
 import re
 import sys
@@ -48,7 +49,8 @@ def settled(go2) -> RobotState:
 
 @pytest.fixture(scope="module")
 def warp(go2):
-    """One Warp backend of N Go2 worlds on flat ground, shared by the tests (each resets what it uses)."""
+    """One Warp backend of N Go2 worlds on flat ground on Warp's CPU device (the default whether or not the machine
+    has a GPU), handing out host arrays; shared by the tests (each resets what it uses)."""
     backend = make_backend("mujoco-warp", go2, N)
     yield backend
     backend.close()
@@ -223,17 +225,67 @@ def test_a_buffer_overflow_flags_the_world_and_is_logged(go2, settled, caplog):
     backend.close()
 
 
-def test_device_state_shares_memory_and_advance_is_one_control_period(go2, settled, warp):
+def test_device_arrays_are_torch_on_the_device_with_the_host_numbers(go2, settled, warp):
+    """The same worlds handing out torch tensors on Warp's device (training) give the numbers the host copies give
+    (evaluation), and take torch targets and states."""
     torch = pytest.importorskip("torch")
-    target = _targets(settled.q, 1)[0]
-    want = _run(warp, settled, [target])
-    warp.reset(np.arange(N), settled)
-    arrays = warp.device_state()
-    assert arrays["qpos"].shape == (N, warp.model.nq) and arrays["qpos"].dtype == torch.float32
-    arrays["ctrl"][:, : go2.n_joints] = torch.as_tensor(target, dtype=torch.float32)
-    warp.advance()
-    assert np.allclose(arrays["qpos"][:, :3].numpy(), want.base_pos, atol=1e-6)
-    assert np.allclose(warp.state().q, want.q, atol=1e-6)
+    targets = _targets(settled.q, 3)
+    want = _run(warp, settled, targets)
+    want_contacts, want_com = warp.contacts(), warp.whole_body_com()
+    device = make_backend("mujoco-warp", go2, N, device="cpu", device_arrays=True)
+    try:
+        device.reset(torch.arange(N), RobotState(**{k: torch.as_tensor(getattr(settled, k), dtype=torch.float32)
+                                                    for k in ("base_pos", "base_quat", "base_linvel",
+                                                              "base_angvel", "q", "qd")}))
+        for target in targets:
+            device.step(torch.as_tensor(target, dtype=torch.float32))
+        got = device.state()
+        assert isinstance(got.q, torch.Tensor) and got.q.dtype == torch.float32 and got.q.device.type == "cpu"
+        assert isinstance(device.diverged, torch.Tensor) and not bool(device.diverged.any())
+        assert np.abs(got.base_pos.numpy() - want.base_pos).max() < 1e-6
+        assert np.abs(got.q.numpy() - want.q).max() < 1e-5
+        contacts = device.contacts()
+        assert isinstance(contacts.group_contact, torch.Tensor)
+        np.testing.assert_array_equal(contacts.group_contact.numpy(), want_contacts.group_contact)
+        np.testing.assert_allclose(contacts.foot_force.numpy(), want_contacts.foot_force, rtol=1e-4, atol=1e-3)
+        np.testing.assert_allclose(device.whole_body_com().numpy(), want_com, atol=1e-6)
+    finally:
+        device.close()
+
+
+def test_the_device_is_one_validated_value():
+    from frbench.backends.devices import parse_device
+    from frbench.errors import FrbenchError
+
+    assert parse_device("cpu") == "cpu" and parse_device(" CPU ") == "cpu"
+    for bad in ("gpu", "cuda:x", "cpu:1", "", None):
+        with pytest.raises(FrbenchError, match=re.escape("expected cpu, cuda or cuda:N")):
+            parse_device(bad)
+    with pytest.raises(FrbenchError, match=re.escape("--device cuda:99: torch sees")):  # none, or fewer than 100
+        parse_device("cuda:99")
+    with pytest.raises(ValueError, match="runs on the CPU"):
+        make_backend("mujoco", get_robot("go2"), 1, device="cuda:0")
+
+
+@pytest.mark.cuda
+def test_worlds_and_tensors_share_the_named_cuda_device(go2, settled):
+    """On a machine with CUDA: the worlds of --device cuda:N and the tensors they hand out lie on GPU N (the last
+    one the machine has), and a period on the GPU follows the CPU device's."""
+    torch = pytest.importorskip("torch")
+    if not torch.cuda.is_available():
+        pytest.skip("no CUDA device")
+    from frbench.backends.devices import parse_device
+
+    device = parse_device(f"cuda:{torch.cuda.device_count() - 1}")
+    backend = make_backend("mujoco-warp", go2, N, device=device, device_arrays=True)
+    try:
+        assert backend.warp_model.body_mass.device.alias == device
+        backend.reset(np.arange(N), settled)
+        backend.step(_targets(settled.q, 1)[0])
+        state = backend.state()
+        assert str(state.q.device) == device and str(backend.diverged.device) == device
+    finally:
+        backend.close()
 
 
 def test_the_gym_env_runs_on_mujoco_warp():
@@ -248,3 +300,19 @@ def test_the_gym_env_runs_on_mujoco_warp():
     assert obs.shape == (2, env.single_observation_space.shape[0]) and np.isfinite(reward).all()
     assert not info["diverged"].any()
     env.close()
+
+
+def test_evaluate_takes_the_device_and_names_a_bad_one(tmp_path, capsys):
+    from frbench.cli import main
+
+    out = tmp_path / "warp.json"
+    base = ["evaluate", "--policy", "scripted", "--robots", "go2", "--terrains", "flat", "--levels", "1", "--seeds",
+            "0", "--episodes", "1", "--jobs", "1"]
+    for flags, message in ((["--backends", "mujoco-warp", "--device", "gpu"], "--device 'gpu': expected cpu, cuda"),
+                           (["--backends", "mujoco", "--device", "cuda:99"], "--device cuda:99: torch sees")):
+        assert main([*base, *flags, "--out", str(tmp_path / "never.json")]) == 2
+        err = capsys.readouterr().err.strip()
+        assert message in err and len(err.splitlines()) == 1
+    assert main([*base, "--backends", "mujoco-warp", "--device", "cpu", "--out", str(out)]) == 0
+    results = json.loads(out.read_text())
+    assert [e["backend"] for e in results["episodes"]] == ["mujoco-warp"] and "device" not in results["config"]

@@ -28,6 +28,11 @@ knows which simulator runs):
   velocity damping of bodies.
 * A simulation that diverges (NaN, explosion, a simulator error) is flagged
   in ``diverged`` and left alone; the others go on. ``reset`` clears the flag.
+* Arrays: a backend hands out its state, contacts and flags as arrays of one namespace (`frbench.arrays`):
+  numpy on the host for the CPU simulators (float64), torch tensors on the backend's device for MuJoCo Warp
+  when it is built with ``device_arrays`` (training; float32). It accepts targets, states, parameters and forces
+  as numpy arrays or as arrays of its own namespace. The summaries below (`divergence_mask`, `Contacts`) are
+  written once for both.
 """
 
 from __future__ import annotations
@@ -38,7 +43,8 @@ from typing import Protocol
 
 import numpy as np
 
-from frbench.backends.contact_layout import contact_layout, vector_norm
+from frbench.arrays import copy_of, namespace
+from frbench.backends.contact_layout import contact_layout, on_device, vector_norm
 from frbench.robots.spec import RobotSpec
 from frbench.control import CONTROL_DT  # noqa: F401  (the control period [s], re-exported for the backends)
 
@@ -81,12 +87,22 @@ class RobotState:
         return cls.at_rest(pos, [1.0, 0.0, 0.0, 0.0], np.tile(spec.default_pose, (num_envs, 1)))
 
     def take(self, ids) -> "RobotState":
-        """The states of simulations ``ids`` (copies)."""
-        return RobotState(**{f.name: (None if getattr(self, f.name) is None else getattr(self, f.name)[ids].copy()) for f in fields(self)})
+        """The states of simulations ``ids`` (copies, in the arrays' namespace)."""
+        return RobotState(**{f.name: (None if getattr(self, f.name) is None else copy_of(getattr(self, f.name)[ids]))
+                             for f in fields(self)})
 
     def copy(self) -> "RobotState":
         """A deep copy."""
         return self.take(slice(None))
+
+    def on_host(self) -> "RobotState":
+        """These states as float64 numpy arrays (themselves when they are numpy arrays; a copy from a device)."""
+        from frbench.arrays import is_host, to_host
+
+        if is_host(self.base_pos):
+            return self
+        return RobotState(**{f.name: (None if getattr(self, f.name) is None
+                                      else to_host(getattr(self, f.name)).astype(np.float64)) for f in fields(self)})
 
 
 @dataclass
@@ -132,6 +148,29 @@ class PhysicsParams:
     friction: np.ndarray
     payload: np.ndarray = field(default=None)
     motor_friction: np.ndarray | None = None
+
+    def like(self, ref) -> "PhysicsParams":
+        """These parameters as arrays of ``ref``'s namespace, device and float dtype (themselves for numpy ``ref``);
+        converted once per device and kept with the parameters (which are not changed after they are set)."""
+        from frbench.arrays import is_host, like
+
+        if is_host(ref):
+            return self
+        converted = self.__dict__.setdefault("_converted", {})
+        key = (str(ref.device), str(ref.dtype))
+        if key not in converted:
+            converted[key] = PhysicsParams(**{f.name: (None if getattr(self, f.name) is None
+                                                       else like(getattr(self, f.name), ref)) for f in fields(self)})
+        return converted[key]
+
+    def on_host(self) -> "PhysicsParams":
+        """These parameters as numpy arrays (themselves when they are)."""
+        from frbench.arrays import is_host, to_host
+
+        if all(getattr(self, f.name) is None or is_host(getattr(self, f.name)) for f in fields(self)):
+            return self
+        return PhysicsParams(**{f.name: (None if getattr(self, f.name) is None else to_host(getattr(self, f.name)))
+                                for f in fields(self)})
 
     @classmethod
     def nominal(cls, spec: RobotSpec, num_envs: int, friction: float = 1.0) -> "PhysicsParams":
@@ -206,11 +245,12 @@ class Backend(Protocol):
         """Free the simulator."""
 
 
-def divergence_mask(state: RobotState) -> np.ndarray:
-    """(N,) bool: rows with a non-finite or exploding value."""
+def divergence_mask(state: RobotState):
+    """(N,) bool: rows with a non-finite or exploding value (numpy or torch, as the state's arrays)."""
     parts = [state.base_pos, state.base_quat, state.base_linvel, state.base_angvel, state.q, state.qd]
-    stacked = np.concatenate([p.reshape(p.shape[0], -1) for p in parts], axis=1)
-    return ~np.all(np.isfinite(stacked) & (np.abs(stacked) < DIVERGENCE_LIMIT), axis=1)
+    xp = namespace(*parts)
+    stacked = xp.concat([xp.reshape(p, (p.shape[0], -1)) for p in parts], axis=1)
+    return ~xp.all(xp.isfinite(stacked) & (xp.abs(stacked) < DIVERGENCE_LIMIT), axis=1)
 
 
 def summarize_contacts(spec: RobotSpec, link_names: tuple[str, ...], link_force: np.ndarray) -> Contacts:
@@ -242,11 +282,11 @@ class SummarizedContacts(Contacts):
 _SUMMARIES = {
     "norm": lambda c, layout: vector_norm(c.link_force),
     "group_contact": lambda c, layout: layout.group_contact(c.norm > CONTACT_FORCE_THRESHOLD),
-    "foot_force": lambda c, layout: c.norm[:, layout.feet],
+    "foot_force": lambda c, layout: c.norm[:, on_device(layout.feet, c.norm)],
     "foot_contact": lambda c, layout: c.foot_force > CONTACT_FORCE_THRESHOLD,
     "knee_force_xy": lambda c, layout: vector_norm(layout.knee_sum(c.link_force)[..., :2]),
-    "body_force_max": lambda c, layout: (c.norm[:, layout.non_foot].max(axis=1) if layout.has_non_foot
-                                         else np.zeros(len(c.link_force))),
+    "body_force_max": lambda c, layout: (namespace(c.norm).max(c.norm[:, on_device(layout.non_foot, c.norm)], axis=1)
+                                         if layout.has_non_foot else namespace(c.norm).zeros_like(c.norm[:, 0])),
 }
 
 

@@ -3,7 +3,8 @@ per-link contact forces of N simulations with a few array operations per control
 
 `ContactLayout` is built once per (link names, groups) and cached; `frbench.backends.base.summarize_contacts`
 reads it. Every reduction keeps the order of the per-group loop it replaces (a group's forces are added
-link after link), so the summaries are bit-identical to it.
+link after link), so the summaries are bit-identical to it. The forces may be numpy arrays or torch tensors on a
+device (`frbench.arrays`): the layout's index arrays then go to that device once (`frbench.arrays.resident`).
 """
 
 from __future__ import annotations
@@ -11,6 +12,8 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
+
+from frbench.arrays import is_host, namespace, resident
 
 
 def as_slice(index: np.ndarray) -> "slice | np.ndarray":
@@ -22,10 +25,19 @@ def as_slice(index: np.ndarray) -> "slice | np.ndarray":
     return index
 
 
-def vector_norm(vectors: np.ndarray) -> np.ndarray:
+def vector_norm(vectors):
     """Euclidean norm over the last axis, (…, k) → (…): the same operations as ``np.linalg.norm(v, axis=-1)``
-    of real input (squares, then ``add.reduce``, then ``sqrt``), without its argument checks."""
-    return np.sqrt(np.add.reduce(vectors * vectors, axis=-1))
+    of real input (squares, then ``add.reduce``, then ``sqrt``), without its argument checks; numpy or torch."""
+    xp = namespace(vectors)
+    return xp.sqrt(xp.sum(vectors * vectors, axis=-1))
+
+
+def on_device(index, ref):
+    """An index (a slice, or an int array) for arrays like ``ref``: itself for numpy and for a slice, else the
+    index array on ``ref``'s device (converted once)."""
+    if isinstance(index, slice) or is_host(ref):
+        return index
+    return resident(index, ref, namespace(ref).int64)
 
 
 class ContactLayout:
@@ -56,17 +68,23 @@ class ContactLayout:
             table = np.stack(self.knee_groups)
             self.knee_columns = [as_slice(table[:, j]) for j in range(table.shape[1])]
 
-    def group_contact(self, touching: np.ndarray) -> np.ndarray:
-        """(N, n_groups) bool: any link of the group touches, from ``touching`` (N, n_links) bool."""
-        return touching @ self.membership
+    def group_contact(self, touching):
+        """(N, n_groups) bool: any link of the group touches, from ``touching`` (N, n_links) bool (numpy or torch)."""
+        if is_host(touching):
+            return touching @ self.membership
+        xp = namespace(touching)  # torch multiplies no booleans: counts of touching links, then > 0
+        membership = resident(self.membership, touching, xp.float32)
+        return (xp.astype(touching, xp.float32) @ membership) > 0
 
-    def knee_sum(self, link_force: np.ndarray) -> np.ndarray:
+    def knee_sum(self, link_force):
         """(N, n_knee_groups, 3) [N]: each knee group's forces added link after link, from (N, n_links, 3)."""
+        xp = namespace(link_force)
         if self.knee_columns is None:
-            return np.stack([link_force[:, idx].sum(axis=1) for idx in self.knee_groups], axis=1)
-        total = 0.0 + link_force[:, self.knee_columns[0]]  # ``sum`` starts from its identity, 0
+            return xp.stack([xp.sum(link_force[:, on_device(idx, link_force)], axis=1) for idx in self.knee_groups],
+                            axis=1)
+        total = 0.0 + link_force[:, on_device(self.knee_columns[0], link_force)]  # ``sum`` starts from its identity, 0
         for column in self.knee_columns[1:]:
-            total = total + link_force[:, column]
+            total = total + link_force[:, on_device(column, link_force)]
         return total
 
 

@@ -38,7 +38,8 @@ from frbench.backends.base import (
     divergence_mask,
     summarize_contacts,
 )
-from frbench.backends.contact_layout import as_slice
+from frbench.arrays import copy_of, is_host, like, namespace
+from frbench.backends.contact_layout import as_slice, on_device, vector_norm
 from frbench.backends.mujoco_com import CentreOfMass
 from frbench.backends.mujoco_model import build_model, joint_addresses
 from frbench.robots.sim_urdf import sim_robot_file
@@ -58,16 +59,17 @@ def default_threads() -> int:
 class ModelLayout:
     """Where a backend built on `build_model`'s ``self.model`` finds ``self.spec``'s state (`_read_layout`)."""
 
-    def _read_layout(self) -> None:
-        """Set ``link_names`` and the addresses: ``_qadr`` / ``_dadr`` (the canonical joints' qpos / qvel columns,
-        `as_slice`), ``_whole_state`` (`holds_whole_state`), ``_link_body`` (the links' bodies), ``_root_body``,
-        ``_base_mass`` [kg] (the root's compiled mass) and ``_terrain_geoms`` (the world body's geoms)."""
+    def _read_layout(self, link_names: tuple[str, ...] | None = None) -> None:
+        """Set ``link_names`` (given, or the simulation URDF's) and the addresses: ``_qadr`` / ``_dadr`` (the
+        canonical joints' qpos / qvel columns, `as_slice`), ``_whole_state`` (`holds_whole_state`), ``_link_body``
+        (the links' bodies), ``_root_body``, ``_base_mass`` [kg] (the root's compiled mass) and ``_terrain_geoms``
+        (the world body's geoms)."""
         model = self.model
         qadr, dadr = joint_addresses(model, self.spec)
         self._qadr, self._dadr = as_slice(qadr), as_slice(dadr)
         #: every coordinate is the free joint's or a canonical joint's: `divergence_mask` reads qpos and qvel whole
         self._whole_state = holds_whole_state(model, self._qadr, self._dadr)
-        self.link_names = sim_robot_file(self.spec).links
+        self.link_names = tuple(link_names) if link_names is not None else sim_robot_file(self.spec).links
         link_body = np.array([model.body(name).id for name in self.link_names])
         self._link_body = as_slice(link_body)
         self._root_body = int(link_body[0])
@@ -249,7 +251,7 @@ def write_actuator_params(gain: np.ndarray, bias: np.ndarray, force_range: np.nd
 def write_actuator_fields(gain, bias, force_range, kp, kd, strength, motor_friction, limits,
                           friction_velocity: float = MOTOR_FRICTION_VELOCITY) -> None:
     """The one formula from a world's PD gains, motor strength and motor friction to its actuator fields, in
-    place, for numpy arrays (MuJoCo C, Warp on the host) and torch tensors on a device (the device trainer) alike.
+    place, for numpy arrays (MuJoCo C, Warp on the host) and torch tensors on a device alike.
 
     Args:
         gain: (N, nu, 10) ``actuator_gainprm``.
@@ -274,45 +276,50 @@ def write_actuator_fields(gain, bias, force_range, kp, kd, strength, motor_frict
     force_range[:, j:, 1] = motor_friction
 
 
-def write_state(qpos: np.ndarray, qvel: np.ndarray, state: RobotState, qadr, dadr) -> None:
+def write_state(qpos, qvel, state: RobotState, qadr, dadr) -> None:
     """Write ``state`` (rows match) into ``qpos`` (n, nq) and ``qvel`` (n, nv) in place: the root's free joint
-    (quaternion normalised) and the canonical joints at ``qadr`` / ``dadr``."""
-    qpos[:, 0:3] = state.base_pos
-    qpos[:, 3:7] = state.base_quat / np.linalg.norm(state.base_quat, axis=1, keepdims=True)
-    qpos[:, qadr] = state.q
-    qvel[:, 0:3] = state.base_linvel
-    qvel[:, 3:6] = state.base_angvel
-    qvel[:, dadr] = state.qd
+    (quaternion normalised) and the canonical joints at ``qadr`` / ``dadr``. numpy or torch (the state's arrays
+    converted into ``qpos``'s namespace and device)."""
+    def own(value):
+        return value if is_host(qpos) else like(value, qpos)
+
+    quat = own(state.base_quat)
+    qpos[:, 0:3] = own(state.base_pos)
+    qpos[:, 3:7] = quat / vector_norm(quat)[:, None]
+    qpos[:, on_device(qadr, qpos)] = own(state.q)
+    qvel[:, 0:3] = own(state.base_linvel)
+    qvel[:, 3:6] = own(state.base_angvel)
+    qvel[:, on_device(dadr, qvel)] = own(state.qd)
 
 
-def state_of(qpos: np.ndarray, qvel: np.ndarray, qadr, dadr) -> RobotState:
-    """The `RobotState` (fresh arrays, no torques) held in ``qpos`` (N, nq) and ``qvel`` (N, nv)."""
+def state_of(qpos, qvel, qadr, dadr) -> RobotState:
+    """The `RobotState` (fresh arrays, no torques) held in ``qpos`` (N, nq) and ``qvel`` (N, nv), numpy or torch."""
     return RobotState(
-        base_pos=qpos[:, 0:3].copy(),
-        base_quat=qpos[:, 3:7].copy(),
-        base_linvel=qvel[:, 0:3].copy(),
-        base_angvel=qvel[:, 3:6].copy(),
-        q=qpos[:, qadr].copy(),
-        qd=qvel[:, dadr].copy(),
+        base_pos=copy_of(qpos[:, 0:3]),
+        base_quat=copy_of(qpos[:, 3:7]),
+        base_linvel=copy_of(qvel[:, 0:3]),
+        base_angvel=copy_of(qvel[:, 3:6]),
+        q=copy_of(qpos[:, on_device(qadr, qpos)]),
+        qd=copy_of(qvel[:, on_device(dadr, qvel)]),
     )
 
 
-def state_divergence(qpos: np.ndarray, qvel: np.ndarray, qadr, dadr, whole_state: bool) -> np.ndarray:
+def state_divergence(qpos, qvel, qadr, dadr, whole_state: bool):
     """(N,) `divergence_mask` of the state in ``qpos`` / ``qvel``; read from them whole when they hold nothing but
     the root and the canonical joints (`holds_whole_state`; |x| < limit is False for NaN and ±inf, so it covers
-    finiteness)."""
+    finiteness). numpy or torch."""
     if not whole_state:
         return divergence_mask(state_of(qpos, qvel, qadr, dadr))
-    return ~((np.abs(qpos) < DIVERGENCE_LIMIT).all(axis=1) & (np.abs(qvel) < DIVERGENCE_LIMIT).all(axis=1))
+    xp = namespace(qpos)
+    return ~(xp.all(xp.abs(qpos) < DIVERGENCE_LIMIT, axis=1) & xp.all(xp.abs(qvel) < DIVERGENCE_LIMIT, axis=1))
 
 
-def contacts_of(spec: RobotSpec, link_names: tuple[str, ...], link_cfrc_ext: np.ndarray,
-                base_force: np.ndarray) -> Contacts:
-    """`Contacts` from the links' ``cfrc_ext`` rows (N, n_links, 6: torque, force; world frame), the base force
-    (N, 3) [N] taken out of the root's (MuJoCo's ``cfrc_ext`` also holds ``xfrc_applied``)."""
-    link_force = np.array(link_cfrc_ext[..., 3:6])
+def contacts_of(spec: RobotSpec, link_names: tuple[str, ...], link_cfrc_ext, base_force: np.ndarray) -> Contacts:
+    """`Contacts` from the links' ``cfrc_ext`` rows (N, n_links, 6: torque, force; world frame; numpy or torch), the
+    base force (N, 3) [N] (numpy) taken out of the root's (MuJoCo's ``cfrc_ext`` also holds ``xfrc_applied``)."""
+    link_force = copy_of(link_cfrc_ext[..., 3:6])
     if base_force.any():
-        link_force[:, 0] -= base_force
+        link_force[:, 0] -= base_force if is_host(link_force) else like(base_force, link_force)
     return summarize_contacts(spec, link_names, link_force)
 
 

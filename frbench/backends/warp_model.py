@@ -21,7 +21,7 @@ above what a fallen robot makes (no run in ``docs/gpu.md`` overflowed), and ``nj
 its 3 rows (elliptic cone, condim 3) plus one row per joint limit. Warp reports an overflow in
 ``Data.overflow`` (`BUFFER_OVERFLOW_NAMES`, `buffer_overflow_mask`); the backend flags the world
 (`frbench.backends.mujoco_warp_backend`). This module imports nothing heavy of frbench's (no terrain or robot
-code), so a device trainer with only mujoco, mujoco-warp and torch can use it.
+code), so a machine with only mujoco, mujoco-warp and torch can use it.
 """
 
 from __future__ import annotations

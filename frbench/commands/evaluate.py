@@ -44,6 +44,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seeds", type=_ints, default=None, help="evaluation seeds (default 0,1)")
     p.add_argument("--episodes", type=int, default=None, help=f"episodes per cell (default {d.episodes})")
     p.add_argument("--noise", action="store_true", help="add sensor noise to the observations")
+    p.add_argument("--device", default=d.device, metavar="DEVICE",
+                   help="cpu (default), cuda or cuda:N: where a device simulator (mujoco-warp) runs; the CPU "
+                        "simulators run on cpu")
     p.add_argument("--jobs", type=int, default=0, help="worker processes (default: one per core)")
     p.add_argument("--executor", default=d.executor, help="local (a process pool, default) or ray (Ray tasks; "
                    "docs/scale.md)")
@@ -79,8 +82,11 @@ def run(args) -> int:
         if given:
             raise FrbenchError(f"--grid {args.grid} fixes the robots, backends, terrains, levels, seeds and episodes: "
                                f"drop --{', --'.join(given)}")
+    from frbench.backends.devices import parse_device
+
     request = EvaluationRequest(policy=resolve_reference(args.policy, args.spec), noise=args.noise, jobs=args.jobs,
-                                executor=args.executor, address=args.address, grid=grid, **given)
+                                executor=args.executor, address=args.address, grid=grid,
+                                device=parse_device(args.device), **given)
     default_stem = f"{Path(args.policy).stem or 'policy'}" + (f"-{'-'.join(grid)}" if grid else "")
     out = args.out or Path("results") / f"{default_stem}.json"
     check_output_path(out)

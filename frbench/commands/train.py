@@ -22,14 +22,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--robots", default=None, help="train on one named robot instead of randomised morphologies")
     p.add_argument("--steps", type=float, default=None, help="env-step budget (default 20e6; with --resume: extend the budget)")
     p.add_argument("--envs", type=int, default=256, help="parallel environments")
-    p.add_argument("--backend", default=None, help="mujoco (default), pybullet, or mujoco+pybullet: "
-                   "half the environments in each simulator (with --resume: continue the run there, a new stage); "
-                   "mujoco-warp: the trainer that stays on the device (--device)")
-    p.add_argument("--device", default=None, choices=("cpu", "cuda"),
-                   help="--backend mujoco-warp: Warp's and torch's device (default cuda when present, else cpu)")
+    p.add_argument("--backend", default=None, help="mujoco (default), pybullet, mujoco-warp (on --device), or "
+                   "mujoco+pybullet: half the environments in each simulator (with --resume: continue the run there, "
+                   "a new stage)")
+    p.add_argument("--device", default=None, metavar="DEVICE",
+                   help="cpu (default), cuda or cuda:N: where a device simulator (mujoco-warp) runs and the run's "
+                        "tensors live (the CPU simulators run on cpu); a run resumes on either")
     p.add_argument("--bundle", type=Path, default=None,
-                   help="--backend mujoco-warp: a prebuilt device bundle (tools/gpu_run/make_bundle.py) instead of "
-                        "building one here")
+                   help="a device bundle (tools/gpu_run/make_bundle.py): the run's robots, rasters, starts and "
+                        "compiled world, built on a CPU machine for this run's flags")
     p.add_argument("--terrains", default=None, help="comma-separated families (default: all seven)")
     p.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE", dest="fields",
                    help="set one training-env config field on top of the preset (repeatable), e.g. seed=1, "
@@ -172,6 +173,7 @@ def new_run_config(args, command: str, weights: dict[str, float], ranges: dict):
 def run(args) -> int:
     """Create (or resume) the run and train it to its budget."""
     from frbench.backends import training_backend_names
+    from frbench.backends.devices import parse_device
     from frbench.errors import FrbenchError, unknown_name
     from frbench.training.methods import METHODS
     from frbench.training.run import ADAPTATION_METHOD, TrainingRun
@@ -184,11 +186,9 @@ def run(args) -> int:
     weights = reward_weight_changes(args.motion_penalties, args.reward_weight)
     if args.backend is not None and args.backend not in training_backend_names():
         raise unknown_name("backend", args.backend, training_backend_names())
-    if (args.device or args.bundle) and args.backend != "mujoco-warp" and not args.resume:
-        raise FrbenchError("--device and --bundle are settings of --backend mujoco-warp")
     if args.bundle is not None and not args.bundle.is_dir():
         raise FrbenchError(f"--bundle {args.bundle}: no such folder")
-    device = {"device": args.device, "bundle": args.bundle} if (args.device or args.bundle) else {}
+    device = {"device": None if args.device is None else parse_device(args.device), "bundle": args.bundle}
     ranges = morphology_range_changes(args.morphology_range)
     if args.entropy_coef is not None and not args.entropy_coef >= 0:
         raise FrbenchError(f"--entropy-coef {args.entropy_coef}: expected a coefficient >= 0")

@@ -38,14 +38,16 @@ STOP = "stop"
 
 def run_episodes(spec, backend, terrain, starts, policy, *, seed: int = 0, steps: int = EPISODE_STEPS,
                  noise_rng=None, on_reset: Callable | None = None, on_step: Callable | None = None,
-                 check: bool = True, joint_frame: str | None = None) -> RecoveryTask:
+                 check: bool = True, joint_frame: str | None = None, device: str | None = None) -> RecoveryTask:
     """Run ``len(starts.kinds)`` episodes of ``policy`` on ``spec`` in ``backend`` (a name or a `Backend`) over
     ``terrain`` for ``steps`` control steps from ``starts`` (`FallenStarts` or `RecordedStarts`, see the module
     docstring); ``seed`` is the terrain's, passed to a policy that plans on the simulator. ``check=False``
     skips the action check (a tool's own trusted controller); ``joint_frame`` overrides the policy's declared
-    frame (None: the policy's ``joint_frame``)."""
+    frame (None: the policy's ``joint_frame``); ``device``: where a device simulator named by ``backend`` runs (None:
+    ``cpu``; its arrays come to the host)."""
     n = len(starts.kinds)
-    with open_backend(backend, spec, n, terrain) if isinstance(backend, str) else nullcontext(backend) as physics:
+    with (open_backend(backend, spec, n, terrain, device) if isinstance(backend, str)
+          else nullcontext(backend)) as physics:
         task = RecoveryTask(spec, physics, terrain, n, noise_rng=noise_rng)
         obs = task.begin(starts) if isinstance(starts, RecordedStarts) else task.reset(starts)
         frame = policy_joint_frame(policy, spec, joint_frame)

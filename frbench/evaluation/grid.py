@@ -15,6 +15,7 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 
 from frbench.backends import BACKENDS, simulator_refusal
+from frbench.backends.simulators import DEVICE_SIMULATORS
 from frbench.errors import FrbenchError, unknown_name
 from frbench.evaluation.provenance import frbench_info, library_versions, processor_info
 from frbench.evaluation.results import aggregate_cells, sim_to_sim, summarize
@@ -55,6 +56,9 @@ class EvaluationRequest:
     cell_keys: list[tuple] | None = None
     #: Robots a simulator cannot take: backend -> robot -> why (their cells do not run); set by `validate`.
     refused: dict[str, dict[str, str]] = field(default_factory=dict)
+    #: Where a device simulator (``mujoco-warp``) runs (`frbench.backends.devices.parse_device`'s value); the CPU
+    #: simulators run on ``cpu``. Recorded in the results' config when it is not ``cpu``.
+    device: str = "cpu"
 
     def cells(self) -> list[Cell]:
         """Every cell of the grid that runs (none of `refused`), in a fixed order."""
@@ -91,6 +95,9 @@ def validate(request: EvaluationRequest):
     for backend in request.backends:
         if backend not in BACKENDS:
             raise unknown_name("backend", backend, BACKENDS)
+    if request.device != "cpu" and not set(request.backends) & set(DEVICE_SIMULATORS):
+        raise FrbenchError(f"--device {request.device}: none of the backends ({', '.join(request.backends)}) runs on "
+                           f"a device; that is {', '.join(DEVICE_SIMULATORS)}")
     for terrain in request.terrains:
         if terrain not in FAMILIES:
             raise unknown_name("terrain", terrain, FAMILIES)
@@ -141,10 +148,11 @@ def run_grid(request: EvaluationRequest, progress=None) -> list[dict]:
     if request.executor == "ray":
         from frbench.evaluation.ray_executor import run_cells_on_ray
 
-        records = run_cells_on_ray(cells, request.policy, request.noise, progress, request.address, request.jobs)
+        records = run_cells_on_ray(cells, request.policy, request.noise, progress, request.address, request.jobs,
+                                   request.device)
     elif jobs <= 1:
         for cell in cells:
-            records += run_cell(cell, request.policy, request.noise)
+            records += run_cell(cell, request.policy, request.noise, device=request.device)
             if progress:
                 progress(cell)
     else:
@@ -154,7 +162,8 @@ def run_grid(request: EvaluationRequest, progress=None) -> list[dict]:
         with ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=_worker_init) as pool:
             try:
                 with children_ignore_sigint():  # the workers start (at submit) ignoring Ctrl-C
-                    futures = {pool.submit(run_cell, cell, request.policy, request.noise): cell for cell in cells}
+                    futures = {pool.submit(run_cell, cell, request.policy, request.noise, device=request.device): cell
+                               for cell in cells}
                 for future in as_completed(futures):
                     records += future.result()
                     if progress:
@@ -181,7 +190,8 @@ def build_results(request: EvaluationRequest, policy, episodes: list[dict], code
     cells = aggregate_cells(episodes)
     summary = summarize(cells)
     config = {k: v for k, v in request.__dict__.items()
-              if k not in RUN_ONLY_FIELDS and (request.grid or k not in GRID_FIELDS) and (v or k != "refused")}
+              if k not in RUN_ONLY_FIELDS and (request.grid or k not in GRID_FIELDS) and (v or k != "refused")
+              and (k != "device" or v != "cpu")}
     return {
         "schema_version": RESULTS_SCHEMA_VERSION,
         "protocol_version": PROTOCOL_VERSION,

@@ -45,13 +45,14 @@ def _import_ray():
     return ray
 
 
-def _run_cell_in_worker(cell: Cell, policy_reference: str, noise: bool, driver_cwd: str) -> list[dict]:
+def _run_cell_in_worker(cell: Cell, policy_reference: str, noise: bool, driver_cwd: str,
+                        device: str | None = None) -> list[dict]:
     """The body of a cell's Ray task: one MuJoCo and one torch thread, the driver's folder for relative paths."""
     os.environ["FRBENCH_MUJOCO_THREADS"] = "1"
     if os.path.isdir(driver_cwd) and os.getcwd() != driver_cwd:
         os.chdir(driver_cwd)
 
-    return run_cell(cell, policy_reference, noise)
+    return run_cell(cell, policy_reference, noise, device=device)
 
 
 def _connect(ray, address: str | None, num_cpus: int) -> bool:
@@ -82,8 +83,9 @@ def _connect(ray, address: str | None, num_cpus: int) -> bool:
 
 def run_cells_on_ray(cells: list[Cell], policy_reference: str, noise: bool = False,
                      progress: Callable[[Cell], None] | None = None, address: str | None = None,
-                     num_cpus: int = 0) -> list[dict]:
-    """Run ``cells`` as Ray tasks; returns their episode records (in completion order, unsorted).
+                     num_cpus: int = 0, device: str | None = None) -> list[dict]:
+    """Run ``cells`` as Ray tasks; returns their episode records (in completion order, unsorted); ``device``: where
+    a device simulator runs (`run_cell`).
 
     ``progress(cell)`` is called on the driver as each cell finishes. ``num_cpus`` (0: this machine's
     cores) sizes a local instance; a cluster brings its own CPUs. On any exception (including
@@ -96,7 +98,7 @@ def run_cells_on_ray(cells: list[Cell], policy_reference: str, noise: bool = Fal
     pending: dict = {}
     try:
         cwd = os.getcwd()
-        pending = {task.remote(cell, policy_reference, noise, cwd): cell for cell in cells}
+        pending = {task.remote(cell, policy_reference, noise, cwd, device): cell for cell in cells}
         records: list[dict] = []
         while pending:
             done, _ = ray.wait(list(pending), num_returns=1)

@@ -13,6 +13,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from frbench.backends.simulators import DEVICE_SIMULATORS
 from frbench.evaluation.episodes import run_episodes
 from frbench.policies.registry import load_policy
 from frbench.robot_checks.lookup import get_robot
@@ -54,10 +55,11 @@ def _one_torch_thread() -> None:
         sys.modules["torch"].set_num_threads(1)
 
 
-def run_cell(cell: Cell, policy_reference: str, noise: bool = False, joint_frame: str | None = None) -> list[dict]:
+def run_cell(cell: Cell, policy_reference: str, noise: bool = False, joint_frame: str | None = None,
+             device: str | None = None) -> list[dict]:
     """Run the cell's episodes with the policy (`run_episodes`); one record per episode. ``joint_frame``
     (``robot`` / ``canonical``) overrides the frame the policy declares: `frbench verify` re-runs a record in
-    the frame its results name (absent: ``robot``)."""
+    the frame its results name (absent: ``robot``). ``device``: where a device simulator runs (None: ``cpu``)."""
     spec = get_robot(cell.robot)
     policy = _policy(policy_reference)
     _one_torch_thread()
@@ -65,7 +67,7 @@ def run_cell(cell: Cell, policy_reference: str, noise: bool = False, joint_frame
     starts = draw_starts(spec, terrain, cell.terrain, cell.level, cell.seed, range(cell.episodes))
     noise_rng = np.random.default_rng([cell.seed, cell.level, 7]) if noise else None
     task = run_episodes(spec, cell.backend, terrain, starts, policy, seed=cell.seed, noise_rng=noise_rng,
-                        joint_frame=joint_frame)
+                        joint_frame=joint_frame, device=device if cell.backend in DEVICE_SIMULATORS else None)
     success, metrics = task.success, task.metrics
     diverged = metrics.diverged | task.settle_diverged
     base = {k: v for k, v in asdict(cell).items() if k != "episodes"}

@@ -64,6 +64,11 @@ class JointFrameError(FrbenchError):
     """The robot has no canonical joint frame (not a quadruped, or a leg that is not hip-thigh-calf)."""
 
 
+def _is_numpy_input(values) -> bool:
+    """Whether ``values`` is a numpy array, a scalar or a sequence (not a torch tensor)."""
+    return isinstance(values, (np.ndarray, np.generic, float, int, list, tuple))
+
+
 def _sagittal_angle(v: np.ndarray) -> float:
     """Angle [rad] of ``v`` from straight down in the body's x-z plane, positive towards -x (backwards)."""
     return float(np.arctan2(-v[0], -v[2]))
@@ -155,9 +160,11 @@ class JointFrame:
         return mapped
 
     def targets(self, canonical):
-        """Joint targets from a policy in the canonical frame, (N, n_joints) [rad], as the robot's targets;
-        the identity frame returns them unchanged."""
-        return canonical if self.is_identity else self.to_joints(np.asarray(canonical, dtype=np.float64))
+        """Joint targets from a policy in the canonical frame, (N, n_joints) [rad] (numpy, as float64, or torch on
+        its device), as the robot's targets; the identity frame returns them unchanged."""
+        if self.is_identity:
+            return canonical
+        return self.to_joints(np.asarray(canonical, dtype=np.float64) if _is_numpy_input(canonical) else canonical)
 
     def canonical_spec(self, spec: RobotSpec) -> RobotSpec:
         """``spec`` as a canonical-frame policy sees it: default pose and joint limits in canonical leg angles

@@ -104,3 +104,19 @@ def standing_height(tree: UrdfTree, joint_names, pose, foot_links) -> float:
     """Height [m] of the root frame over flat ground with the feet's lowest point on it."""
     poses = link_poses(tree, dict(zip(joint_names, pose)))
     return -lowest_point(tree, poses, foot_links)
+
+
+def chain_to_link(spec, link: str) -> tuple[list, list[int]]:
+    """The joints of ``spec``'s simulation URDF from its root link to ``link``, root first, and each one's index in
+    the canonical joint order (−1 for a joint that does not move); StopIteration when ``link`` has no such chain."""
+    from frbench.robots.sim_urdf import sim_robot_file
+    from frbench.robots.urdf_tree import parse_urdf
+
+    tree = parse_urdf(sim_robot_file(spec).path)
+    chain, child = [], link
+    while child != tree.root:
+        joint = next(j for j in tree.joints.values() if j.child == child)
+        chain.append(joint)
+        child = joint.parent
+    chain.reverse()
+    return chain, [spec.joint_names.index(j.name) if j.type in ("revolute", "continuous") else -1 for j in chain]

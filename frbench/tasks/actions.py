@@ -3,13 +3,15 @@ envs. `DirectTargets` is the paper's rule, q* = q̊ + scale·a; the residual ove
 policies, is `frbench.training.residual.ResidualController`; held actions are `frbench.training.action_hold`.
 
 Each transform has ``reset(spec, num_envs)`` and ``targets(state, action) -> (N, J) [rad]`` (actions (N, J) in
-policy units; the episode engine clips the targets to the joint limits).
+policy units, numpy or torch: the targets come in the action's namespace; the episode engine clips them to the
+joint limits).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from frbench.arrays import resident
 from frbench.backends.base import RobotState
 from frbench.robots.spec import RobotSpec
 
@@ -27,6 +29,6 @@ class DirectTargets:
     def reset(self, spec: RobotSpec, num_envs: int) -> None:
         """A new episode for every environment (nothing to do)."""
 
-    def targets(self, state: RobotState, action: np.ndarray) -> np.ndarray:
-        """Joint targets (N, J) [rad] of ``action`` (N, J)."""
-        return self.default_pose + self.scale * action
+    def targets(self, state: RobotState, action):
+        """Joint targets (N, J) [rad] of ``action`` (N, J), numpy or torch."""
+        return resident(self.default_pose, action) + self.scale * action

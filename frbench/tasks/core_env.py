@@ -38,10 +38,11 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from frbench.arrays import copy_of, is_host, like, namespace
 from frbench.backends import make_backend, simulator_parts
 from frbench.backends.base import PhysicsParams, RobotState
 from frbench.robots.spec import RobotSpec
-from frbench.tasks.initial_states import FallenStarts, draw_start
+from frbench.tasks.initial_states import FallenStarts, RecordedStarts, draw_start
 from frbench.tasks.observations import flatten
 from frbench.tasks.recovery import EPISODE_STEPS, SETTLE_STEPS, RecoveryTask
 
@@ -68,6 +69,12 @@ class CoreEnv:
             `observation_groups` adds (training's `frbench.training.observation_groups.PrivilegedGroups`), or None.
         variants, noise_rng, ground_height, nominal_height, track_metrics, surface_rules: as in `make_backend`
             and `RecoveryTask`.
+        device: where the simulator runs and hands out its arrays (`frbench.backends.devices.parse_device`'s
+            value; training): numpy on the host for the CPU simulators, torch on that device for MuJoCo Warp, and
+            everything the env computes follows them (`frbench.arrays`). None: host numpy arrays whatever the
+            simulator (the Gymnasium envs, which hand numpy to their users).
+        world: the simulator's compiled world (`frbench.backends.mujoco_warp_backend.CompiledWorld`, a bundle's),
+            or None: compiled here from ``spec``, ``terrain`` and ``variants``.
         joint_frame: the `frbench.robots.joint_frame.JointFrame` the learner reads and writes joints in (frbench's
             trainers: the robots' canonical frame), or None: the robot's own convention (the Gymnasium envs).
             The observation's joint terms go through it into o_t, and the transform's targets, which are then
@@ -79,7 +86,7 @@ class CoreEnv:
                  history: int | None = None, long_history: int = 0, episode_steps: int = EPISODE_STEPS,
                  variants=None, noise_rng=None, ground_height: Callable | None = None, nominal_height=None,
                  track_metrics: bool = True, surface_rules: bool = True, privileged: Callable | None = None,
-                 joint_frame=None):
+                 joint_frame=None, device: str | None = None, world=None):
         self.spec, self.terrain, self.num_envs = spec, terrain, int(num_envs)
         self.default_pose = np.asarray(spec.default_pose)
         self.frame = joint_frame
@@ -94,7 +101,8 @@ class CoreEnv:
         self.episode_steps = int(episode_steps)
         #: Env steps taken so far (N per control step): the schedules of start sources and the assist read it.
         self.env_steps = 0
-        self.backend = make_backend(backend, spec, self.num_envs, terrain=terrain, variants=variants)
+        self.backend = make_backend(backend, spec, self.num_envs, terrain=terrain, variants=variants, device=device,
+                                    device_arrays=device is not None, world=world)
         try:
             self.task = RecoveryTask(spec, self.backend, terrain, self.num_envs, noise_rng=noise_rng,
                                      ground_height=ground_height, nominal_height=nominal_height,
@@ -176,9 +184,9 @@ class CoreEnv:
         self.starts.new_episodes(self, self.rng)
         if self.history_length is not None:
             o_t = self.policy_observation()
-            self.history = np.repeat(o_t[:, None, :], self.history_length, axis=1)
+            self.history = _repeated(o_t, self.history_length)
             if self.long_history_length:
-                self.long_history = np.repeat(o_t[:, None, :], self.long_history_length, axis=1)
+                self.long_history = _repeated(o_t, self.long_history_length)
 
     def draw_fallen(self, rng: np.random.Generator, terrains, offsets: Sequence | None = None,
                     specs: Sequence[RobotSpec] | None = None) -> FallenStarts:
@@ -208,26 +216,37 @@ class CoreEnv:
         if self.assist is not None:
             self.assist.apply(self, self.env_steps)
 
+    def begin_recorded(self, starts: RecordedStarts, params: PhysicsParams | None = None) -> None:
+        """Begin the episodes at recorded states (the engine's `RecoveryTask.begin`: no settle, velocities
+        included) under ``params``; the assist force set for the episode."""
+        self.task.begin(starts, params)
+        if self.assist is not None:
+            self.assist.apply(self, self.env_steps)
+
     def begin(self, action: np.ndarray | None = None) -> None:
-        """Start the episodes' actions: a_{t−1} = a_{t−2} = ``action`` (N, J) (default zeros), the transform
-        reset."""
-        self.actions.begin(np.zeros((self.num_envs, self.spec.n_joints)) if action is None else action)
+        """Start the episodes' actions: a_{t−1} = a_{t−2} = ``action`` (N, J) (default zeros; in the namespace of the
+        backend's arrays), the transform reset."""
+        action = np.zeros((self.num_envs, self.spec.n_joints)) if action is None else action
+        q = self.task.state.q
+        self.actions.begin(action if is_host(q) else like(action, q))
         self.transform.reset(self.spec, self.num_envs)
 
     # -- stepping -----------------------------------------------------------------------------------------
     def step(self, action: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray]:
         """One decision ``action`` (N, J), held for its control steps (fewer when the episode ends first):
-        (reward (N,) and weighted terms name → (N,), both summed over the held steps, alive (N,) bool)."""
-        reward, term_sums, alive = np.zeros(self.num_envs), {}, None
+        (reward (N,) and weighted terms name → (N,), both summed over the held steps, alive (N,) bool), in the
+        namespace of the backend's arrays (``action`` too)."""
+        reward, term_sums, alive = None, {}, None
         for action_prev, action_prev2 in self.actions.decide(action, self.episode_steps - self.task.t):
             step_reward, terms, alive = self._control_step(action_prev, action_prev2)
-            reward += step_reward
+            reward = step_reward if reward is None else reward + step_reward
             term_sums = {k: term_sums.get(k, 0.0) + v for k, v in terms.items()}
         if self.history_length is not None:
             o_t = self.policy_observation()[:, None, :]
-            self.history = np.concatenate([self.history[:, 1:], o_t], axis=1)
+            xp = namespace(o_t)
+            self.history = xp.concat([self.history[:, 1:], o_t], axis=1)
             if self.long_history is not None:
-                self.long_history = np.concatenate([self.long_history[:, 1:], o_t], axis=1)
+                self.long_history = xp.concat([self.long_history[:, 1:], o_t], axis=1)
         return reward, term_sums, alive
 
     def _control_step(self, action_prev: np.ndarray, action_prev2: np.ndarray):
@@ -241,7 +260,7 @@ class CoreEnv:
         task.advance(targets)
         self.env_steps += self.num_envs
         if self.reward is None:
-            return np.zeros(self.num_envs), {}, task.alive
+            return namespace(task.alive).zeros(task.alive.shape, dtype=task.state.q.dtype), {}, task.alive
         return self.reward(task, action, action_prev, action_prev2, qd_prev)
 
     # -- observations and what an episode tells ---------------------------------------------------------------
@@ -273,7 +292,10 @@ class CoreEnv:
         if self.long_history is not None:
             groups["long_history"] = self.long_history.reshape(n, -1)
         diverged = self.physics_diverged
-        alive = ~diverged if diverged.any() else None
+        if is_host(diverged):
+            alive = ~diverged if diverged.any() else None
+        else:
+            alive = ~diverged  # on a device: no host synchronisation to find that all are alive
         return {key: zero_invalid(value, alive) for key, value in groups.items()}
 
     def success_info(self) -> dict[str, np.ndarray]:
@@ -310,10 +332,20 @@ class ProtocolStarts:
         env.begin()
 
 
-def zero_invalid(value: np.ndarray, alive: np.ndarray | None) -> np.ndarray:
+def zero_invalid(value, alive):
     """``value`` (N, k) with NaN and infinities as zeros, and the rows not ``alive`` (N,) zero (None: all are
-    alive); a float64 ``value`` itself when nothing changes."""
-    if alive is None and value.dtype == np.float64 and np.isfinite(value).all():
-        return value
-    cleaned = np.nan_to_num(value, nan=0.0, posinf=0.0, neginf=0.0)
-    return cleaned if alive is None else np.where(alive[:, None], cleaned, 0.0)
+    alive); numpy or torch. A float64 numpy ``value`` itself when nothing changes."""
+    if is_host(value):
+        if alive is None and value.dtype == np.float64 and np.isfinite(value).all():
+            return value
+        cleaned = np.nan_to_num(value, nan=0.0, posinf=0.0, neginf=0.0)
+        return cleaned if alive is None else np.where(alive[:, None], cleaned, 0.0)
+    xp = namespace(value)  # torch on a device: the same rule without asking the host whether anything changes
+    cleaned = xp.where(xp.isfinite(value), value, 0.0)
+    return cleaned if alive is None else xp.where(alive[:, None], cleaned, 0.0)
+
+
+def _repeated(o_t, length: int):
+    """(N, ``length``, D): the observation ``o_t`` (N, D) repeated (a history refilled), numpy or torch."""
+    xp = namespace(o_t)
+    return copy_of(xp.broadcast_to(o_t[:, None, :], (o_t.shape[0], length, o_t.shape[1])))

@@ -13,9 +13,9 @@ Proprioception (the paper's o_t, 42 values for a quadruped), each (N, k):
 Optional sensor noise (off by default) is uniform with the scales of
 `NOISE_SCALES`, drawn from a generator passed in.
 
-The math is written once for numpy and torch (`frbench.tasks.arrays`): evaluation passes numpy arrays (the
+The math is written once for numpy and torch (`frbench.arrays`): evaluation passes numpy arrays (the
 numbers are bit for bit those of the numpy-only code before), the device training path
-(`frbench.training.device_env`) torch tensors that stay on their device.
+(`frbench.training.env` on MuJoCo Warp) torch tensors that stay on their device.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from frbench.backends.base import RobotState
-from frbench.tasks.arrays import like, namespace
+from frbench.arrays import like, namespace
 
 PROPRIOCEPTION_KEYS = ("base_angvel", "projected_gravity", "joint_pos", "joint_vel", "previous_action")
 #: Half-widths of uniform sensor noise, per key (legged_gym's values).
@@ -35,7 +35,7 @@ _NEXT, _PREV = (1, 2, 0), (2, 0, 1)
 
 
 def cross_rows(a, b):
-    """Row-wise cross products of (…, 3) arrays (numpy or torch, `frbench.tasks.arrays`): the products and
+    """Row-wise cross products of (…, 3) arrays (numpy or torch, `frbench.arrays`): the products and
     differences ``np.cross`` computes, one column at a time (without its axis handling)."""
     xp = namespace(a, b)
     return xp.stack([a[..., i] * b[..., j] - a[..., j] * b[..., i] for i, j in zip(_NEXT, _PREV)], axis=-1)

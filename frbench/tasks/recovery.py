@@ -35,6 +35,7 @@ from typing import Callable, Iterator
 
 import numpy as np
 
+from frbench.arrays import copy_of, is_host, like, namespace, resident
 from frbench.backends import make_backend
 from frbench.backends.contact_layout import vector_norm
 from frbench.backends.base import PhysicsParams, RobotState, SummarizedContacts
@@ -56,11 +57,12 @@ CATCH_UP_STEPS = 128
 
 
 @contextmanager
-def open_backend(name: str, spec: RobotSpec, num_envs: int, terrain=None) -> Iterator:
+def open_backend(name: str, spec: RobotSpec, num_envs: int, terrain=None, device: str | None = None) -> Iterator:
     """The backend ``name`` (`frbench.backends.make_backend`) with ``num_envs`` simulations of ``spec`` on
-    ``terrain``, closed when the ``with`` block ends: for a caller that builds the physics a `RecoveryTask`
-    works on (the task never closes it)."""
-    backend = make_backend(name, spec, num_envs, terrain=terrain)
+    ``terrain`` (a device simulator on ``device``, default ``cpu``, its arrays on the host), closed when the
+    ``with`` block ends: for a caller that builds the physics a `RecoveryTask` works on (the task never closes
+    it)."""
+    backend = make_backend(name, spec, num_envs, terrain=terrain, device=device)
     try:
         yield backend
     finally:
@@ -180,7 +182,7 @@ class RecoveryTask:
         self._measure_start()
 
     def _measure_start(self) -> None:
-        self.start_xy = self.state.base_pos[:, :2].copy()
+        self.start_xy = copy_of(self.state.base_pos[:, :2])
         if self.surface_rules:
             self.start_surface = StartSurface(self.terrain, self.start_xy)
 
@@ -239,8 +241,9 @@ class RecoveryTask:
         base_pos, base_quat = _rows(states, "base_pos"), _rows(states, "base_quat")
         q = _rows(states, "q")
         group_contact, body_force_max = _contact_rows([step[1] for step in kept])
-        diverged = np.stack([step[2] for step in kept])
-        gravity = np.stack([step[3] for step in kept])
+        xp = namespace(base_pos)
+        diverged = xp.stack([step[2] for step in kept])
+        gravity = xp.stack([step[3] for step in kept])
         signals = self._signals_of(base_pos, base_quat, q, gravity, group_contact)
         self._signals_now = StepSignals(*(None if a is None else a[-1] for a in _fields(signals)))
         self._success.update_steps(signals, alive=~diverged)
@@ -257,7 +260,7 @@ class RecoveryTask:
         self.params = self.nominal if params is None else params
         self.settle(starts, settle_steps)
         self.starts = screen_starts(self, starts, settle_steps)
-        return self._start_episodes(np.tile(self.default_pose, (n, 1)), self.backend.diverged.copy())
+        return self._start_episodes(np.tile(self.default_pose, (n, 1)), copy_of(self.backend.diverged))
 
     def begin(self, starts: RecordedStarts, params: PhysicsParams | None = None) -> dict[str, np.ndarray]:
         """Begin the episodes at recorded states (`RecordedStarts`, one per environment) under ``params``
@@ -272,8 +275,9 @@ class RecoveryTask:
         self.backend.set_params(self.params)
         self._place(np.arange(n), starts.state)
         self.starts = starts
-        previous = self.state.q.copy() if starts.previous_action is None else np.array(starts.previous_action, dtype=float)
-        return self._start_episodes(previous, np.zeros(n, dtype=bool))
+        previous = (copy_of(self.state.q) if starts.previous_action is None
+                    else np.array(starts.previous_action, dtype=float))
+        return self._start_episodes(previous, namespace(self.backend.diverged).zeros_like(self.backend.diverged))
 
     def _start_episodes(self, previous_action: np.ndarray, settle_diverged: np.ndarray) -> dict[str, np.ndarray]:
         """t = 0 from the placed starts: ``previous_action`` (N, n_joints) [rad], a fresh success test and
@@ -281,7 +285,9 @@ class RecoveryTask:
         n = self.num_envs
         self.previous_action = previous_action
         self._kept, self._signals_now, self._diverged = [], None, None
-        self._success = SuccessTracker(n, self.spec.kind, self.nominal_height)
+        ref = self.state.base_pos
+        self._success = (SuccessTracker(n, self.spec.kind, self.nominal_height) if is_host(ref) else
+                         SuccessTracker(n, self.spec.kind, resident(self.nominal_height, ref), like=ref))
         self._metrics = EpisodeMetrics(n, self.spec.n_joints) if self.track_metrics else None
         self.settle_diverged = settle_diverged
         self.t = 0
@@ -309,7 +315,7 @@ class RecoveryTask:
         if self._terrain_ground:
             ground = height_at(self.terrain, xy)
         else:  # a caller's rule for N points at a time
-            ground = np.stack([self.ground_height(step) for step in xy])
+            ground = namespace(xy).stack([self.ground_height(step) for step in xy])
         surface_drop = None
         if self.start_surface is not None:  # the terrain's height under the base is ``ground`` unless given
             surface_drop = self.start_surface.drop(xy, ground if self._terrain_ground else None)
@@ -319,7 +325,7 @@ class RecoveryTask:
         return StepSignals(
             gravity_z=gravity[..., 2],
             height=base_pos[..., 2] - ground,
-            body_contact=group_contact.any(axis=-1),
+            body_contact=namespace(group_contact).any(group_contact, axis=-1),
             displacement=vector_norm(xy - self.start_xy),
             surface_drop=surface_drop,
             torso_gravity_z=torso,
@@ -334,7 +340,11 @@ class RecoveryTask:
         """Advance one control step towards ``targets`` (N, n_joints) [rad] (clipped to the joint limits):
         physics, then ``state``, ``contacts``, ``gravity`` and ``alive``; the step is kept for the success test
         and the metrics (class docstring)."""
-        targets = np.minimum(np.maximum(targets, self.lower), self.upper)  # np.clip's result, without its checks
+        ref = self.state.q
+        if not is_host(ref):  # the backend's namespace and device (a numpy controller's targets go there)
+            targets = like(targets, ref)
+        xp = namespace(targets)  # np.clip's result, without its checks
+        targets = xp.minimum(xp.maximum(targets, resident(self.lower, targets)), resident(self.upper, targets))
         self.backend.step(targets)
         self.previous_action = targets
         self.state = state = self.backend.state()
@@ -352,21 +362,23 @@ class RecoveryTask:
         return self.observation()
 
 
-def _rows(states: list[RobotState], name: str) -> np.ndarray:
-    """(k, N, ·): field ``name`` of k states, step after step (a view for one state)."""
-    return getattr(states[0], name)[None] if len(states) == 1 else np.stack([getattr(s, name) for s in states])
+def _rows(states: list[RobotState], name: str):
+    """(k, N, ·): field ``name`` of k states, step after step (a view for one state); numpy or torch."""
+    first = getattr(states[0], name)
+    return first[None] if len(states) == 1 else namespace(first).stack([getattr(s, name) for s in states])
 
 
 def _contact_rows(readings: list) -> tuple[np.ndarray, np.ndarray]:
     """(group contact (k, N, G), largest non-foot force (k, N)) of k steps' `Contacts`; summarised together from
     the stacked link forces when each reading summarises lazily by one rule (`SummarizedContacts`)."""
     first = readings[0]
+    xp = namespace(first.link_force)
     if len(readings) > 1 and all(isinstance(c, SummarizedContacts) and c._layout is first._layout for c in readings):
-        forces = np.stack([c.link_force for c in readings])
+        forces = xp.stack([c.link_force for c in readings])
         k, n = forces.shape[:2]
-        together = SummarizedContacts(first._layout, forces.reshape(k * n, *forces.shape[2:]))
-        return together.group_contact.reshape(k, n, -1), together.body_force_max.reshape(k, n)
-    return (np.stack([c.group_contact for c in readings]), np.stack([c.body_force_max for c in readings]))
+        together = SummarizedContacts(first._layout, xp.reshape(forces, (k * n, *forces.shape[2:])))
+        return xp.reshape(together.group_contact, (k, n, -1)), xp.reshape(together.body_force_max, (k, n))
+    return (xp.stack([c.group_contact for c in readings]), xp.stack([c.body_force_max for c in readings]))
 
 
 def _fields(signals: StepSignals) -> list:

@@ -21,7 +21,7 @@ a pit floor passed) and used HoST's pelvis-height rule for humanoids (a hand or
 head stand passed); both gaps are closed here.
 
 The success test (`SuccessTracker`) runs on numpy arrays or torch tensors on any device (one implementation,
-`frbench.tasks.arrays`): evaluation feeds numpy signals, the device training path torch ones.
+`frbench.arrays`): evaluation feeds numpy signals, the device training path torch ones.
 
 `EpisodeMetrics` (numpy; evaluation only) accumulates, per environment and control step: energy
 ∫|τ·q̇|dt [J], smoothness (mean |Δ²q| [rad]), peak non-foot contact force [N],
@@ -35,10 +35,8 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from frbench.robots.kinematics import _axis_rotation
-from frbench.robots.sim_urdf import sim_robot_file
-from frbench.robots.urdf_tree import parse_urdf
-from frbench.tasks.arrays import cummax, device_of, float_dtype, namespace
+from frbench.robots.kinematics import _axis_rotation, chain_to_link
+from frbench.arrays import cummax, device_of, float_dtype, namespace
 from frbench.tasks.initial_states import quat_to_matrix
 from frbench.tasks.protocol import CONTROL_DT
 from frbench.terrains import height_at, support_height
@@ -113,14 +111,7 @@ class TorsoFrame:
     """
 
     def __init__(self, spec, link: str = "torso_link"):
-        tree = parse_urdf(sim_robot_file(spec).path)
-        chain, child = [], link
-        while child != tree.root:
-            joint = next(j for j in tree.joints.values() if j.child == child)
-            chain.append(joint)
-            child = joint.parent
-        self.chain = chain[::-1]
-        self.index = [spec.joint_names.index(j.name) if j.type in ("revolute", "continuous") else -1 for j in self.chain]
+        self.chain, self.index = chain_to_link(spec, link)
 
     def gravity_z(self, base_quat: np.ndarray, q: np.ndarray) -> np.ndarray:
         """(N,) projected gravity z of the torso: −(world z of the torso's z axis); base_quat (N, 4) wxyz, q (N, n)."""

@@ -7,7 +7,7 @@ residual over key frames). The rewards that read the previous actions
 (smoothing a_t − a_{t−1}, jerk a_t − 2a_{t−1} + a_{t−2}) see, within a
 decision, the held action as its own predecessor.
 
-Shapes: (N, J) actions in policy units.
+Shapes: (N, J) actions in policy units (numpy or torch).
 """
 
 from __future__ import annotations
@@ -15,6 +15,8 @@ from __future__ import annotations
 from typing import Iterator
 
 import numpy as np
+
+from frbench.arrays import copy_of
 
 
 class HeldAction:
@@ -35,7 +37,7 @@ class HeldAction:
     def begin(self, action: np.ndarray) -> None:
         """A new episode whose first action (and its predecessor) is ``action`` (N, J)."""
         self.current = action
-        self.previous = action.copy()
+        self.previous = copy_of(action)
 
     def decide(self, action: np.ndarray, steps_left: int) -> Iterator[tuple[np.ndarray, np.ndarray]]:
         """Make ``action`` (N, J) the current one; yield (a_{t−1}, a_{t−2}) for each control step it is held:

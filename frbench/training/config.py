@@ -52,13 +52,18 @@ class TrainEnvConfig:
     """Training environment settings (saved in every checkpoint); see the module docstring."""
 
     num_envs: int = 256
-    #: ``mujoco``, ``pybullet`` or ``mujoco+pybullet`` (half the batch in each simulator).
+    #: The simulator (`frbench.backends.training_backend_names`): ``mujoco``, ``pybullet``, ``mujoco-warp`` (on the
+    #: device `frbench train --device` names) or ``mujoco+pybullet`` (half the batch in each simulator).
     backend: str = "mujoco"
     robot: str | None = None  # None: randomised morphologies
     num_morphologies: int = 32
     #: Episode length and the fallen start's settle on soft gains, in control steps (0.02 s).
     episode_steps: int = 350
     settle_steps: int = 25
+    #: Settled fallen starts recorded per (terrain tile, robot variant) before training, every episode beginning
+    #: at one of its cell's (`start_bank.StartBank`: no settle per episode, what a GPU run wants); 0: every
+    #: episode's start is drawn and settled afresh.
+    start_bank: int = 0
     action_scale: float = 1.0  # the paper's q* = q̊ + a
     families: tuple[str, ...] = FAMILIES
     curriculum: bool = True
@@ -158,6 +163,7 @@ class TrainEnvConfig:
         need(self.num_morphologies >= 1, "num_morphologies", "at least 1 robot")
         need(self.episode_steps >= 1, "episode_steps", "at least 1 control step")
         need(self.settle_steps >= 0, "settle_steps", "at least 0 control steps")
+        need(self.start_bank >= 0, "start_bank", "at least 0 settled starts per tile and robot (0: none)")
         need(self.action_scale > 0, "action_scale", "a positive number")
         need(len(self.families) > 0 and all(f in FAMILIES for f in self.families), "families",
              f"terrain families among {', '.join(FAMILIES)}")
@@ -187,7 +193,6 @@ class TrainEnvConfig:
             need(self.action_hold == 1, "action_hold", "1 with a teacher (it labels every control step)")
             need(not self.base_controller, "base_controller", "none with a teacher (it labels the plain policy)")
             need(self.robot_kind() == "quadruped", "teacher", "a quadruped batch (scripted drives quadrupeds)")
-            need(self.backend != "mujoco-warp", "backend", "a CPU simulator with a teacher")
         self.imitation_schedule()  # ValueError naming a bad dagger_* or imitation_* value
         for name in ("gain_ranges", "morphology_ranges"):
             for key, (low, high) in getattr(self, name).items():

@@ -42,7 +42,7 @@ _BIT_GENERATORS = ("PCG64", "PCG64DXSM", "Philox", "SFC64", "MT19937")
 
 def moved_levels(level, successes, episodes, redraw, *, promote: float, demote: float, max_level: int):
     """The rule's one implementation: the levels of environments whose block just ended, for numpy arrays (the
-    CPU trainer's `TerrainCurriculum`) and torch tensors on a device (the device trainer) alike.
+    curriculum, `TerrainCurriculum`, on the host) and torch tensors on a device alike.
 
     Args:
         level: (M,) int, the environments' current levels.
@@ -57,7 +57,7 @@ def moved_levels(level, successes, episodes, redraw, *, promote: float, demote: 
         (M,) int: one level up, down or the same; a promotion beyond ``max_level`` takes the redrawn level;
         clamped to [1, ``max_level``].
     """
-    from frbench.tasks.arrays import namespace
+    from frbench.arrays import namespace
 
     xp = namespace(level)
     rate = successes / xp.clip(episodes, 1, None)
@@ -133,10 +133,13 @@ class TerrainCurriculum:
 
         Args:
             env_ids: (M,) distinct environment indices.
-            success: (M,) bool, whether each of those episodes met the success test.
+            success: (M,) bool, whether each of those episodes met the success test (numpy, or an array on a
+                device: it comes to the host, where the curriculum lives).
         """
-        ids = np.asarray(env_ids, dtype=np.int64).reshape(-1)
-        ok = np.asarray(success, dtype=bool).reshape(-1)
+        from frbench.arrays import to_host
+
+        ids = np.asarray(to_host(env_ids), dtype=np.int64).reshape(-1)
+        ok = np.asarray(to_host(success), dtype=bool).reshape(-1)
         if ids.shape != ok.shape:
             raise ValueError(f"env_ids has {ids.size} entries, success {ok.size}")
         if ids.size == 0:

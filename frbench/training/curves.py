@@ -27,24 +27,34 @@ LEADING_COLUMNS = ("iteration", "env_steps", "wall_s", "success_all", "success_f
 
 class LossLog:
     """Dicts of numbers added since the last `means` call, averaged: the losses of the PPO updates (an algorithm's
-    ``update`` adds each), the policy's std and learning rate per update, or the reward terms per env step."""
+    ``update`` adds each), the policy's std and learning rate per update, or the reward terms per env step. A value
+    may be a 0-d array on a device (the reward terms of a training env on a device): it is summed where it lives and read once,
+    by `means`."""
 
     def __init__(self, prefix: str = "loss_"):
         self.prefix = prefix
-        self._sums: dict[str, float] = {}
+        self._sums: dict = {}
         self._count = 0
 
     def add(self, losses: dict) -> None:
         for key, value in losses.items():
             if value is not None:
-                self._sums[key] = self._sums.get(key, 0.0) + float(value)
+                self._sums[key] = self._sums.get(key, 0.0) + (float(value) if _on_host(value) else value)
         self._count += 1
 
     def means(self) -> dict[str, float]:
         """``<prefix><name>`` → mean over the dicts added since the last call (then forgotten); {} if none."""
-        out = {f"{self.prefix}{k}": round(v / self._count, 6) for k, v in self._sums.items()} if self._count else {}
+        out = ({f"{self.prefix}{k}": round(float(v) / self._count, 6) for k, v in self._sums.items()}
+               if self._count else {})
         self._sums, self._count = {}, 0
         return out
+
+
+def _on_host(value) -> bool:
+    """Whether ``value`` is a host number (a Python or numpy scalar, a numpy array), not a device array."""
+    import numpy as np
+
+    return isinstance(value, (int, float, np.generic, np.ndarray))
 
 
 class TensorBoardCurve:

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from frbench.arrays import to_host
 from frbench.backends.base import RobotState
 from frbench.policies.registry import load_policy
 from frbench.tasks.observations import projected_gravity
@@ -81,18 +82,18 @@ def record_demo_starts(env, specs, assignment: np.ndarray, tile_row: np.ndarray,
     n, n_joints = len(assignment), specs[0].n_joints
     states, targets = [], []
     target = np.zeros((n, n_joints))
-    state = env.state
+    state = env.state.on_host()  # the controllers run on the host
     for step in range(steps):
         gravity = projected_gravity(state.base_quat)
         for controller, ids in zip(controllers, groups):
             if len(ids):
                 target[ids] = controller.act({"projected_gravity": gravity[ids], "joint_pos": state.q[ids]})
-        state = env.drive(target)
+        state = env.drive(target).on_host()
         if step % stride == stride - 1:
             states.append(state.copy())
             targets.append(target.copy())
     return DemoStartBank(states=states, targets=np.stack(targets), tile_row=np.asarray(tile_row).copy(),
-                         valid=~np.asarray(env.physics_diverged, dtype=bool).copy())
+                         valid=~np.asarray(to_host(env.physics_diverged), dtype=bool).copy())
 
 
 def assist_probability(initial: float, until_steps: float, env_steps: float) -> float:

@@ -15,9 +15,7 @@ The core env adds ``policy`` and the histories and cleans every group (`CoreEnv.
 
 from __future__ import annotations
 
-import numpy as np
-
-from frbench.tasks.arrays import float_dtype, namespace
+from frbench.arrays import float_dtype, namespace, resident
 from frbench.tasks.observations import rotate_to_body
 from frbench.training.population import yaw_of
 
@@ -28,7 +26,7 @@ FOOT_FORCE_CAP_N, FOOT_FORCE_SCALE_N = 500.0, 100.0
 def privileged_groups(o_t, scan, masses, kp, kd, com_xy, group_contact, foot_force, friction, motor_strength,
                       payload, base_quat, base_linvel) -> dict:
     """The groups of the module docstring from their parts, numpy arrays or torch tensors on one device (the
-    CPU trainer and the device trainer assemble them here, in this order): o_t (N, 6 + 3J), the height scan
+    training env assembles them here, in this order, whatever its arrays): o_t (N, 6 + 3J), the height scan
     (N, 187) [m], group masses (N, G) [kg], Kp and Kd (N, J), CoM xy in the base yaw frame (N, 2) [m], contact
     flags (N, C) bool, foot force norms (N, F) [N], friction, motor strength (N, J), payload (N,) [kg], base
     quaternion (N, 4) wxyz and linear velocity (N, 3) [m/s], world frame."""
@@ -55,11 +53,12 @@ class PrivilegedGroups:
     def __init__(self, raster, starts, robots):
         self.raster, self.starts, self.robots = raster, starts, robots
 
-    def __call__(self, env, o_t: np.ndarray) -> dict[str, np.ndarray]:
-        """Each group (N, ·) float64 of the core env ``env`` now, its policy observation ``o_t`` (N, 6 + 3J) given
-        (see the module docstring)."""
-        s, c, p = env.state, env.contacts, env.params
-        scan = self.raster.scan(self.starts.tile_row, s.base_pos, yaw_of(s.base_quat))
+    def __call__(self, env, o_t):
+        """Each group (N, ·) of the core env ``env`` now, its policy observation ``o_t`` (N, 6 + 3J) given (see the
+        module docstring): float64 numpy arrays, or torch tensors on the device of the env's arrays."""
+        s, c, p = env.state, env.contacts, env.params.like(o_t)
+        scan = self.raster.scan(self.starts.tiles(o_t), s.base_pos, yaw_of(s.base_quat))
         com_xy = self.robots.com_xy(s, env.whole_body_com())
-        return privileged_groups(o_t, scan, self.robots.env_masses, p.kp, p.kd, com_xy, c.group_contact,
-                                 c.foot_force, p.friction, p.motor_strength, p.payload, s.base_quat, s.base_linvel)
+        return privileged_groups(o_t, scan, resident(self.robots.env_masses, o_t), p.kp, p.kd, com_xy,
+                                 c.group_contact, c.foot_force, p.friction, p.motor_strength, p.payload, s.base_quat,
+                                 s.base_linvel)

@@ -18,6 +18,7 @@ import dataclasses
 
 import numpy as np
 
+from frbench.arrays import namespace
 from frbench.backends.base import PhysicsParams, RobotState
 from frbench.robot_checks.lookup import get_robot
 from frbench.robots import ground_truth
@@ -29,75 +30,94 @@ from frbench.training.step_reward import HeadPoints
 NAMED_ROBOT_GAIN_FACTORS = (0.9, 1.1)
 
 
-def yaw_of(quat: np.ndarray) -> np.ndarray:
-    """Yaw [rad] (N,) of quaternions (N, 4) wxyz."""
-    w, x, y, z = quat.T
-    return np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+def yaw_of(quat):
+    """Yaw [rad] (N,) of quaternions (N, 4) wxyz (numpy or torch)."""
+    w, x, y, z = quat[:, 0], quat[:, 1], quat[:, 2], quat[:, 3]
+    return namespace(quat).atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+
+def _feasible_morphologies(cfg, rng: np.random.Generator) -> tuple[list, list, int]:
+    """``num_morphologies`` sampled robots (CoM shift applied when randomising) that can stand at the lowest
+    training gains (`feasibility.can_stand`), their parameters, and how many were redrawn."""
+    kp, kd = cfg.gain_ranges.get("kp", CONTROL_RANGES["kp"])[0], cfg.gain_ranges.get("kd", CONTROL_RANGES["kd"])[0]
+    specs, morphologies, rejected = [], [], 0
+    while len(specs) < cfg.num_morphologies:
+        morphology = sample_morphologies(1, rng, ranges=dict(cfg.morphology_ranges))[0]
+        if cfg.randomize:  # the paper's CoM shift, baked into the morphology's trunk inertial
+            shift = rng.uniform(*CONTROL_RANGES["com_shift"], size=3)
+            morphology = dataclasses.replace(morphology, trunk_com_shift=tuple(map(float, shift)))
+        spec = morphology_spec(morphology, f"morph{len(specs):04d}")
+        if can_stand(spec, kp, kd):
+            specs.append(spec)
+            morphologies.append(morphology)
+        else:
+            rejected += 1
+        if rejected > 20 * cfg.num_morphologies:
+            raise ValueError(f"{rejected} sampled morphologies could not stand at Kp {kp}, Kd {kd}; "
+                             "raise the gain range")
+    return specs, morphologies, rejected
 
 
 class TrainingRobots:
-    """The robots of a batch of ``cfg.num_envs`` environments (see the module docstring), drawn from ``rng``.
+    """The robots of a batch of ``cfg.num_envs`` environments (see the module docstring); ``rng`` draws each
+    episode's physics (`episode_params`).
 
     Attributes: ``specs`` (K robots), ``spec`` (the first: joint order, limits, default pose), ``assignment``
     (N,) index into ``specs``, ``variants`` (the backend's per-simulation robots, or None), ``env_masses``
     (N, G) [kg], ``env_friction`` (N,), ``env_payload`` (N,) [kg], ``nominal_height`` (N,) [m], ``head``
     (humanoids: their head points, else None); with sampled morphologies also
     ``morphologies`` and ``rejected`` (redrawn ones).
+
+    `drawn` draws them (the robot files, Pinocchio's masses); the constructor holds robots drawn before (a
+    device bundle's, `frbench.training.device_bundle`), with their group masses (K, G) [kg] without payload.
     """
 
-    def __init__(self, cfg, rng: np.random.Generator):
+    def __init__(self, cfg, rng: np.random.Generator, specs, assignment: np.ndarray, variant_friction: np.ndarray,
+                 variant_payload: np.ndarray, group_masses: np.ndarray, head=None):
         self.cfg, self.rng = cfg, rng
-        n = cfg.num_envs
-        specs = [get_robot(cfg.robot)] if cfg.robot else self._feasible_morphologies()
-        self.specs = specs
-        self.spec = specs[0]
-        self.assignment = np.arange(n) % len(specs)
-        self.rng.shuffle(self.assignment)
-        k = len(specs)
-        if cfg.randomize:
-            variant_physics = sample_physics(self.spec, k, self.rng)
-            self.variant_friction, self.variant_payload = variant_physics.friction, variant_physics.payload
-        else:
-            self.variant_friction, self.variant_payload = np.ones(k), np.zeros(k)
-        self.variants = (specs, self.assignment, self.variant_friction, self.variant_payload) if k > 1 or cfg.randomize else None
-        masses = np.array([ground_truth.group_masses(s) for s in specs])
+        self.specs = list(specs)
+        self.spec = self.specs[0]
+        self.assignment = np.asarray(assignment)
+        self.variant_friction, self.variant_payload = np.asarray(variant_friction), np.asarray(variant_payload)
+        k = len(self.specs)
+        self.variants = ((self.specs, self.assignment, self.variant_friction, self.variant_payload)
+                         if k > 1 or cfg.randomize else None)
+        self.group_masses = np.asarray(group_masses, dtype=float)
+        masses = self.group_masses.copy()
         masses[:, 0] += self.variant_payload  # the payload sits on the base
         self.env_masses = masses[self.assignment]
         self.env_friction = self.variant_friction[self.assignment]
         self.env_payload = self.variant_payload[self.assignment]
-        self.nominal_height = np.array([s.nominal_height for s in specs])[self.assignment]
+        self.nominal_height = np.array([s.nominal_height for s in self.specs])[self.assignment]
         self.humanoid = self.spec.kind == "humanoid"
         #: The humanoid's head points (`step_reward.HeadPoints`); None for quadrupeds.
-        self.head = HeadPoints(specs, self.assignment) if self.humanoid else None
+        self.head = head
+        self.morphologies, self.rejected = [], 0
 
     @classmethod
     def drawn(cls, cfg, rng: np.random.Generator) -> "TrainingRobots":
-        """The robots of ``cfg``: from ``rng`` (the env's generator), or from their own generator when
+        """The robots of ``cfg``, drawn from ``rng`` (the env's generator), or from their own generator when
         ``cfg.population_seed`` is set."""
-        return cls(cfg, rng if cfg.population_seed is None else np.random.default_rng(cfg.population_seed))
-
-    def _feasible_morphologies(self) -> list:
-        """``num_morphologies`` sampled robots (CoM shift applied when randomising) that can stand at the lowest
-        training gains (`feasibility.can_stand`); the others are redrawn and counted in ``self.rejected``.
-        Their parameters are kept in ``self.morphologies``."""
-        cfg = self.cfg
-        kp, kd = cfg.gain_ranges.get("kp", CONTROL_RANGES["kp"])[0], cfg.gain_ranges.get("kd", CONTROL_RANGES["kd"])[0]
-        specs, self.morphologies, self.rejected = [], [], 0
-        while len(specs) < cfg.num_morphologies:
-            morphology = sample_morphologies(1, self.rng, ranges=dict(cfg.morphology_ranges))[0]
-            if cfg.randomize:  # the paper's CoM shift, baked into the morphology's trunk inertial
-                shift = self.rng.uniform(*CONTROL_RANGES["com_shift"], size=3)
-                morphology = dataclasses.replace(morphology, trunk_com_shift=tuple(map(float, shift)))
-            spec = morphology_spec(morphology, f"morph{len(specs):04d}")
-            if can_stand(spec, kp, kd):
-                specs.append(spec)
-                self.morphologies.append(morphology)
-            else:
-                self.rejected += 1
-            if self.rejected > 20 * cfg.num_morphologies:
-                raise ValueError(f"{self.rejected} sampled morphologies could not stand at Kp {kp}, Kd {kd}; "
-                                 "raise the gain range")
-        return specs
+        rng = rng if cfg.population_seed is None else np.random.default_rng(cfg.population_seed)
+        n = cfg.num_envs
+        morphologies, rejected = [], 0
+        if cfg.robot:
+            specs = [get_robot(cfg.robot)]
+        else:
+            specs, morphologies, rejected = _feasible_morphologies(cfg, rng)
+        assignment = np.arange(n) % len(specs)
+        rng.shuffle(assignment)
+        k = len(specs)
+        if cfg.randomize:
+            variant_physics = sample_physics(specs[0], k, rng)
+            friction, payload = variant_physics.friction, variant_physics.payload
+        else:
+            friction, payload = np.ones(k), np.zeros(k)
+        masses = np.array([ground_truth.group_masses(s) for s in specs])
+        head = HeadPoints(specs, assignment) if specs[0].kind == "humanoid" else None
+        robots = cls(cfg, rng, specs, assignment, friction, payload, masses, head)
+        robots.morphologies, robots.rejected = morphologies, rejected
+        return robots
 
     def sample_physics(self, n: int) -> PhysicsParams:
         """Gains, motor strength, friction and payload for ``n`` episodes. Sampled morphologies draw one Kp and
@@ -125,11 +145,12 @@ class TrainingRobots:
         return params
 
     @staticmethod
-    def com_xy(state: RobotState, com_world: np.ndarray) -> np.ndarray:
+    def com_xy(state: RobotState, com_world):
         """Whole-body CoM ``com_world`` (N, 3) [m] (the backend's vectorised `whole_body_com`, payload included)
-        minus the base position, in the base yaw frame, (N, 2) [m]."""
+        minus the base position, in the base yaw frame, (N, 2) [m]; numpy or torch."""
         s = state
+        xp = namespace(com_world)
         delta = com_world[:, :2] - s.base_pos[:, :2]
         yaw = yaw_of(s.base_quat)
-        c, si = np.cos(yaw), np.sin(yaw)
-        return np.stack([c * delta[:, 0] + si * delta[:, 1], -si * delta[:, 0] + c * delta[:, 1]], axis=1)
+        c, si = xp.cos(yaw), xp.sin(yaw)
+        return xp.stack([c * delta[:, 0] + si * delta[:, 1], -si * delta[:, 0] + c * delta[:, 1]], axis=1)

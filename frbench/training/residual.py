@@ -17,6 +17,7 @@ from typing import Mapping
 
 import numpy as np
 
+from frbench.arrays import to_host
 from frbench.backends.base import RobotState
 from frbench.policies.learned import residual_targets
 from frbench.policies.registry import load_base_controller
@@ -51,10 +52,11 @@ class ResidualController:
         """A new episode for every environment: the base controller starts its motion over."""
         self.controller.reset(spec, num_envs)
 
-    def targets(self, state: RobotState, action: np.ndarray) -> np.ndarray:
-        """Joint targets (N, J) [rad]: the base controller's for ``state`` plus the (gated) residual ``action``."""
-        base = np.asarray(self.controller.act(proprioception(state, self.default_pose)), dtype=np.float64)
-        return residual_targets(base, action, self.scale, self.controller, self.gated, self.phases)
+    def targets(self, state: RobotState, action) -> np.ndarray:
+        """Joint targets (N, J) [rad]: the base controller's for ``state`` plus the (gated) residual ``action``. The
+        controller runs on the host: a device's state and action come to it (the engine sends the targets back)."""
+        base = np.asarray(self.controller.act(proprioception(state.on_host(), self.default_pose)), dtype=np.float64)
+        return residual_targets(base, to_host(action), self.scale, self.controller, self.gated, self.phases)
 
     def enter_gate(self, ids: np.ndarray, targets: np.ndarray, q: np.ndarray, paths: np.ndarray) -> None:
         """Put environments ``ids`` in the phase where the gate opened (rise starts): their recorded controller

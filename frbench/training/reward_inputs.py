@@ -2,8 +2,8 @@
 
 `frbench.training.step_reward.StepReward` builds it from the episode engine after each step; tests build it by
 hand. Arrays have N rows (environments), SI units: numpy arrays (evaluation, the CPU trainer) or torch tensors on
-one device (the device trainer, `frbench.training.device_env`); the reward terms compute in the namespace of
-``projected_gravity`` (`frbench.tasks.arrays`).
+one device (the training env on MuJoCo Warp, `frbench.training.env`); the reward terms compute in the namespace of
+``projected_gravity`` (`frbench.arrays`).
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from frbench.tasks.arrays import float_dtype, like, namespace
+from frbench.arrays import float_dtype, like, namespace
 
 
 @dataclass

@@ -3,8 +3,8 @@
 Every term is a function of one :class:`RewardInputs` (arrays with N rows, SI
 units) returning the **unweighted** term, shape (N,): float64 numpy arrays for
 numpy inputs (evaluation, the CPU trainer), torch tensors on the inputs' device
-and float dtype for torch inputs (the device trainer). The terms are written
-once against the Array API standard (`frbench.tasks.arrays`); the numpy path is
+and float dtype for torch inputs (the training env on a device). The terms are written
+once against the Array API standard (`frbench.arrays`); the numpy path is
 bit for bit the numpy-only code it replaced.
 :func:`compute_rewards` weights them with a :class:`RewardConfig` and sums.
 
@@ -83,7 +83,7 @@ from typing import Callable, Mapping
 
 import numpy as np
 
-from frbench.tasks.arrays import sum_sq
+from frbench.arrays import sum_sq
 from frbench.training.reward_inputs import RewardInputs
 
 __all__ = [

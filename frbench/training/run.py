@@ -87,6 +87,24 @@ def _adaptation_setup(teacher: Path | None):
     return env_cfg, train_cfg
 
 
+def _bundle_parts(bundle: Path | None, env_cfg, device: str | None):
+    """The `TrainingParts` of the device bundle in folder ``bundle`` (None: none, the env builds its own), checked
+    against the run's config; a `FrbenchError` naming the flag when the run's simulator takes no device or bundle."""
+    from frbench.backends.simulators import DEVICE_SIMULATORS
+
+    if env_cfg.backend not in DEVICE_SIMULATORS and (bundle is not None or device not in (None, "cpu")):
+        flag = f"--device {device}" if device not in (None, "cpu") else f"--bundle {bundle}"
+        raise FrbenchError(f"{flag}: this run trains in {env_cfg.backend}, which runs on the CPU and builds its own "
+                           f"parts; devices and bundles are for {', '.join(DEVICE_SIMULATORS)}")
+    if bundle is None:
+        return None
+    from frbench.training.device_bundle import bundle_parts, check_bundle_config, load_bundle
+
+    loaded = load_bundle(bundle)
+    check_bundle_config(loaded, env_cfg, bundle)
+    return bundle_parts(loaded)
+
+
 def estimator_sized_for(train_cfg: dict, num_masses: int, num_contacts: int, nominal_masses) -> dict:
     """``train_cfg`` with the estimator's mass and contact heads sized for a robot whose labels have
     ``num_masses`` mass groups and ``num_contacts`` contact groups (unchanged when they already match).
@@ -130,8 +148,9 @@ class TrainingRun:
         ``resume``), a backend name, continues the run in that simulator (e.g. ``mujoco+pybullet``: a MuJoCo-trained
         policy fine-tuned in both), recorded as a stage too. ``algorithm_stage`` (with ``resume``), PPO setting →
         value (``entropy_coef``), changes rsl-rl's algorithm config from the run's current step, recorded the
-        same way. ``device`` and ``bundle``: the device trainer's (``backend`` ``mujoco-warp``,
-        `frbench.training.device_env`). ``train_overrides`` (new runs)
+        same way. ``device`` (`frbench.backends.devices.parse_device`'s value): where a device simulator runs and
+        the run's tensors live; ``bundle``: a device bundle folder (`frbench.training.device_bundle`) whose parts
+        the env is built from, built for this run's config. ``train_overrides`` (new runs)
         are merged into the method's rsl-rl config (e.g. ``{"actor": {"distribution_cfg": {"init_std": 0.2}}}``)
         and saved with it."""
         torch.set_num_threads(1)
@@ -174,15 +193,7 @@ class TrainingRun:
         seed = distributed.rank_seed(env_cfg.seed, ranks.rank)  # each rank its own environments and draws
         torch.manual_seed(seed)
         env_cfg = env_cfg if seed == env_cfg.seed else dataclasses.replace(env_cfg, seed=seed)
-        if (device or bundle) and env_cfg.backend != "mujoco-warp":
-            raise FrbenchError(f"--device and --bundle are settings of --backend mujoco-warp; this run trains in "
-                               f"{env_cfg.backend}")
-        if env_cfg.backend == "mujoco-warp":  # the trainer that stays on the device
-            from frbench.training.device_env import device_training_env
-
-            self.env = device_training_env(env_cfg, device, bundle)
-        else:
-            self.env = RecoveryTrainingEnv(env_cfg)
+        self.env = RecoveryTrainingEnv(env_cfg, device, _bundle_parts(bundle, env_cfg, device))
         sized = estimator_sized_for(train_cfg, self.env.env_masses.shape[1], len(self.env.spec.contact_groups),
                                     self.env.env_masses[0])
         if sized != train_cfg:  # e.g. the G1: 3 mass groups and 10 contact groups instead of 4 and 13
@@ -191,7 +202,7 @@ class TrainingRun:
             self.out.mkdir(parents=True, exist_ok=True)
             atomic_write_text(self.out / CONFIG_FILE, json.dumps(config, indent=1) + "\n")
         self.runner = distributed.runner_class()(self.env, json.loads(json.dumps(train_cfg)), log_dir=None,
-                                                 device=(self.env.device if env_cfg.backend == "mujoco-warp"
+                                                 device=(self.env.device if self.env.device_arrays
                                                          else distributed.training_device()))
         self.losses = LossLog()  # the updates' losses in each logging window, for the learning curve
         self.tensorboard = TensorBoardCurve(self.out)
@@ -297,7 +308,8 @@ class TrainingRun:
             if self.ranks.world_size > 1:
                 self.env.env_steps = self.env_steps  # schedules (demo starts, assist force) follow the run's steps
             self.progress.append({"iteration": self.iteration, "env_steps": self.env_steps, "wall_s": round(self.wall, 1),
-                                  **stats, **self.losses.means(), **self.policy_stats.means(),
+                                  **stats, **distributed.mean_over_ranks(self.env.last_curriculum_stats),
+                                  **self.losses.means(), **self.policy_stats.means(),
                                   **self.env.reward_means.means()})
             if self.ranks.is_main:
                 self.tensorboard.add(self.progress[-1])

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from frbench.arrays import is_host, like, namespace, to_host
 from frbench.backends.base import RobotState
 from frbench.tasks.observations import proprioception
 from frbench.tasks.recovery import EPISODE_STEPS
@@ -93,10 +94,10 @@ class RiseStarts:
         n = env.num_envs
         controller.reset(spec, n)
         bank, opened = [], np.zeros(n, dtype=bool)
-        state = env.state
+        state = env.state.on_host()  # the controller runs on the host
         for _ in range(EPISODE_STEPS):
-            state = env.drive(np.asarray(controller.act(proprioception(state, default_pose))))
-            new = (controller.residual_gate() > 0) & ~opened & ~env.physics_diverged
+            state = env.drive(np.asarray(controller.act(proprioception(state, default_pose)))).on_host()
+            new = (controller.residual_gate() > 0) & ~opened & ~to_host(env.physics_diverged)
             paths = controller.gate_paths()
             bank += [(state.take([i]), int(tile_row[i]), controller.target[i].copy(), int(paths[i]))
                      for i in np.flatnonzero(new)]
@@ -129,22 +130,42 @@ class CurriculumStarts:
         grid: the world of terrain tiles (`terrain_grid.build_grid`); ``raster`` its `HeightRaster`.
         curriculum: the `TerrainCurriculum` (each environment's family and level).
         robots: the batch's `TrainingRobots` (robot per environment, physics per episode).
+        bank: a `frbench.training.start_bank.StartBank` of settled starts recorded before training, or None: every
+            episode's fallen start is drawn and settled afresh.
 
     After `new_episodes`: ``tile_row`` (N,) each environment's tile (a row of ``raster``), ``from_demo`` (N,)
     the episodes started from a bank (demo or rise).
     """
 
-    def __init__(self, cfg, grid, raster, curriculum, robots):
+    def __init__(self, cfg, grid, raster, curriculum, robots, bank=None):
         self.cfg, self.grid, self.raster, self.curriculum, self.robots = cfg, grid, raster, curriculum, robots
+        self.bank = bank
         self.demo = DemoStarts(cfg.demo_start_fraction, cfg.demo_start_until, cfg.demo_refresh_episodes,
                                cfg.demo_steps, cfg.demo_stride)
         self.rise = RiseStarts(cfg.rise_start_fraction, cfg.demo_refresh_episodes) if cfg.rise_start_fraction else None
         self.tile_row: np.ndarray | None = None
+        self._tiles: dict = {}  # ``tile_row`` on the devices it was asked for (`tiles`), until new episodes
         self.from_demo = np.zeros(cfg.num_envs, dtype=bool)
+
+    def tiles(self, ref):
+        """``tile_row`` (N,) in the namespace and on the device of array ``ref`` (converted once per episode)."""
+        if is_host(ref):
+            return self.tile_row
+        key = str(ref.device)
+        if key not in self._tiles:
+            self._tiles[key] = like(self.tile_row, ref, namespace(ref).int64)
+        return self._tiles[key]
 
     def new_episodes(self, env, rng: np.random.Generator) -> None:
         """New episodes for every environment of the core env ``env``: fresh fallen starts (re-recording a bank
         first when it is due), a fraction of them replaced by bank states; the episodes' actions begun."""
+        self._tiles = {}
+        try:
+            self._new_episodes(env, rng)
+        finally:
+            self._tiles = {}
+
+    def _new_episodes(self, env, rng: np.random.Generator) -> None:
         n, spec = env.num_envs, env.spec
         fraction = self.demo.fraction(env.env_steps)
         if self.demo.needs_recording(fraction):
@@ -170,7 +191,7 @@ class CurriculumStarts:
                 ids, state, tiles, targets, paths = drawn
                 self._restart_from(env, ids, state, tiles)
                 self.from_demo[ids] = True
-                env.transform.enter_gate(ids, targets, env.state.q, paths)
+                env.transform.enter_gate(ids, targets, to_host(env.state.q), paths)
 
     def _restart_from(self, env, ids: np.ndarray, state: RobotState, tiles) -> None:
         """Start environments ``ids`` from recorded ``state`` (len(ids) rows) on their recorded ``tiles``."""
@@ -178,16 +199,22 @@ class CurriculumStarts:
         self.tile_row[ids] = tiles
 
     def _fresh_starts(self, env, rng: np.random.Generator) -> None:
-        """Fallen starts on every environment's curriculum tile, settled for ``settle_steps`` by the engine."""
+        """Fallen starts on every environment's curriculum tile, settled for ``settle_steps`` by the engine (or
+        drawn from the bank of settled starts)."""
         tiles = list(zip(self.curriculum.family.tolist(), self.curriculum.level.tolist()))
         self.tile_row = np.array([self.raster.index[t] for t in tiles])
+        if self.bank is not None:
+            self.bank.begin(env, rng, self.tile_row, self.robots.assignment, self.robots.episode_params())
+            return
         specs = [self.robots.specs[k] for k in self.robots.assignment]
         starts = env.draw_fallen(rng, [self.grid.tiles[t] for t in tiles], [self.grid.offsets[t] for t in tiles], specs)
         env.reset(starts, self.robots.episode_params(), self.cfg.settle_steps)
 
-    def end_episodes(self, env, success: np.ndarray, alive: np.ndarray) -> dict[str, float]:
+    def end_episodes(self, env, success, alive) -> dict[str, float]:
         """The episodes' statistics (`episode_stats`), then the curriculum's move on the fallen starts' ``success``
-        (N,) bool (when the config has a curriculum)."""
+        (N,) bool (when the config has a curriculum). ``success`` and ``alive`` (N,) may live on a device: they
+        come to the host here, once per episode."""
+        success, alive = to_host(success), to_host(alive)
         stats = self.episode_stats(env, success, alive)
         if self.cfg.curriculum:  # the curriculum judges fallen starts only
             fallen = np.flatnonzero(~self.from_demo)

@@ -4,10 +4,12 @@
 
 Writes under ``--out`` (``runs/`` is git-ignored; the device tool carries it with ``carry``):
 
-* ``go2/``: the device bundle of the training run (`frbench.training.device_bundle`), built from the flags in
-  tools/gpu_run/train_flags.txt (the same flags run.sh trains with, so the run's config and the bundle's agree);
-  the GPU machine needs neither Pinocchio nor the robot packages;
-* ``g1/``: a G1 bundle (256 envs) for the throughput sweep;
+* ``go2/``: the device bundle of the training run (`frbench.training.device_bundle`: the training env's CPU-made
+  parts — robots, rasters, curriculum, generators, the bank of settled starts — and the compiled world), built from
+  the flags in tools/gpu_run/train_flags.txt (the same flags run.sh trains with, so the run's config and the
+  bundle's agree); the GPU machine builds the one training env from it with neither Pinocchio nor the robot
+  packages;
+* ``g1/``: a G1 bundle (256 envs, 2 settled starts per tile) for the throughput sweep;
 * ``wheels/``: the wheels the GPU machine lacks, for CPython 3.12 manylinux (``pip download --no-deps``), with
   warp-lang's 149 MB wheel split into parts of at most ``--part-mb`` MB (``warp_lang.whl.part-aa`` …), each sent
   by its own device call (docs/gpu.md).
@@ -71,8 +73,8 @@ def main(argv=None) -> int:
     print(f"go2 bundle: {cfg.num_envs} envs, {cfg.num_morphologies} morphologies, {len(cfg.families)} families")
     save_bundle(build_bundle(cfg), args.out / "go2")
     if args.g1_envs:
-        g1 = TrainEnvConfig(num_envs=args.g1_envs, robot="g1", backend="mujoco-warp")
-        save_bundle(build_bundle(g1, starts_per_cell=2), args.out / "g1")
+        g1 = TrainEnvConfig(num_envs=args.g1_envs, robot="g1", backend="mujoco-warp", start_bank=2)
+        save_bundle(build_bundle(g1), args.out / "g1")
     if not args.no_wheels:
         wheels = args.out / "wheels"
         wheels.mkdir(parents=True, exist_ok=True)
