@@ -19,7 +19,6 @@ import math
 import mujoco
 import numpy as np
 
-from frbench.backends.bullet import pybullet
 from frbench.terrains.geometry import Terrain
 
 #: MuJoCo sliding, torsional and rolling friction besides the sliding value.
@@ -127,6 +126,8 @@ def add_to_bullet(client, terrain: Terrain, friction: float) -> list[int]:
         body ids: the floor first, then the compound bodies holding the boxes.
     """
     friction = _check_friction(friction)
+    from frbench.backends.bullet import pybullet  # here: MuJoCo's builders work without PyBullet (a GPU machine)
+
     floor_shape = client.createCollisionShape(pybullet.GEOM_PLANE, planeNormal=[0.0, 0.0, 1.0])
     bodies = [
         client.createMultiBody(
