@@ -5,6 +5,10 @@ reward terms, the same curriculum moves (its redraw included), episode statistic
 a device bundle rebuilds the env the CPU builds."""
 
 import json
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,6 +23,7 @@ from frbench.training.env import RecoveryTrainingEnv  # noqa: E402
 
 TINY = ["--envs", "4", "--terrains", "flat", "--set", "num_morphologies=2", "--set", "episode_steps=30",
         "--set", "settle_steps=5"]
+ROOT = Path(__file__).resolve().parents[1]
 FIELDS = ("base_pos", "base_quat", "base_linvel", "base_angvel", "q", "qd")
 #: Two families, sampled morphologies and randomised physics: every part of the env that differs per environment.
 CONFIG = dict(num_envs=4, num_morphologies=2, families=("flat", "stairs"), episode_steps=6, settle_steps=5, seed=3)
@@ -253,13 +258,33 @@ def test_a_bundle_rebuilds_the_env_the_cpu_builds_and_episodes_begin_at_bank_sta
     finally:
         direct.close()
         from_bundle.close()
+    # on a machine without the CPU stack (the GPU machine's missing packages blocked), the env builds and steps
+    (tmp_path / "block").mkdir()
+    (tmp_path / "block" / "sitecustomize.py").write_text(
+        "import importlib.abc, sys\n"
+        "class Block(importlib.abc.MetaPathFinder):\n"
+        "    def find_spec(self, name, path, target=None):\n"
+        "        if name.split('.')[0] in ('pinocchio', 'pybullet', 'pybullet_utils', 'example_robot_data', 'gymnasium'):\n"
+        "            raise ModuleNotFoundError(name)\n"
+        "sys.meta_path.insert(0, Block())\n")
+    code = ("import sys, torch\n"
+            "from frbench.training.device_bundle import bundle_parts, load_bundle\n"
+            "from frbench.training.env import RecoveryTrainingEnv\n"
+            f"bundle = load_bundle({str(tmp_path / 'bundle')!r})\n"
+            "env = RecoveryTrainingEnv(bundle.config, 'cpu', bundle_parts(bundle))\n"
+            "obs, reward, done, _ = env.step(torch.zeros(4, 12))\n"
+            "assert 'pinocchio' not in sys.modules and 'pybullet' not in sys.modules\n"
+            "print(tuple(obs['privileged'].shape), bool(torch.isfinite(reward).all()))\n")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path / "block"), str(ROOT)])}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, cwd=tmp_path)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip().splitlines()[-1] == "(4, 277) True"
 
 
 def test_the_gpu_run_trains_from_a_bundle_of_its_own_flags():
     import importlib.util
-    from pathlib import Path
 
-    path = Path(__file__).resolve().parents[1] / "tools" / "gpu_run" / "make_bundle.py"
+    path = ROOT / "tools" / "gpu_run" / "make_bundle.py"
     spec = importlib.util.spec_from_file_location("make_bundle", path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
