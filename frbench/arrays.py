@@ -22,6 +22,8 @@ from collections import OrderedDict
 
 import numpy as np
 
+#: Array type → its namespace (`namespace`).
+_NAMESPACES: dict = {}
 #: Host constants converted by `resident` (key → (the host value, its converted copy)); least recently used first.
 _RESIDENT: OrderedDict = OrderedDict()
 #: Conversions `resident` keeps (each holds its host value, so an id is never reused while it is kept).
@@ -30,11 +32,19 @@ _RESIDENT_SIZE = 256
 
 def namespace(*arrays):
     """The Array API namespace of ``arrays`` (None entries and Python scalars ignored); numpy's when none is
-    an array."""
+    an array. Kept per array type when all arrays have one (the step's hundreds of calls cost a dict lookup)."""
+    kinds = {type(a) for a in arrays if a is not None and not isinstance(a, (bool, int, float))}
+    kind = next(iter(kinds)) if len(kinds) == 1 else None
+    known = _NAMESPACES.get(kind)
+    if known is not None:
+        return known
     from array_api_compat import array_namespace, is_array_api_obj
 
     found = [a for a in arrays if a is not None and is_array_api_obj(a)]
-    return array_namespace(*found) if found else array_namespace(np.empty(0))
+    xp = array_namespace(*found) if found else array_namespace(np.empty(0))
+    if kind is not None:
+        _NAMESPACES[kind] = xp
+    return xp
 
 
 def is_numpy(xp) -> bool:
@@ -51,6 +61,11 @@ def is_host(x) -> bool:
 
 def device_of(x):
     """The device of array ``x`` ("cpu" for numpy)."""
+    if isinstance(x, np.ndarray):
+        return "cpu"
+    found = getattr(x, "device", None)
+    if found is not None and not callable(found):
+        return found
     from array_api_compat import device
 
     return device(x)

@@ -103,6 +103,8 @@ class CoreEnv:
         self.env_steps = 0
         self.backend = make_backend(backend, spec, self.num_envs, terrain=terrain, variants=variants, device=device,
                                     device_arrays=device is not None, world=world)
+        #: whether the backend's arrays (and so everything the env computes) are torch tensors on a device
+        self.device_arrays = bool(getattr(self.backend, "device_arrays", False))
         try:
             self.task = RecoveryTask(spec, self.backend, terrain, self.num_envs, noise_rng=noise_rng,
                                      ground_height=ground_height, nominal_height=nominal_height,

@@ -120,7 +120,7 @@ class RecoveryTrainingEnv(VecEnv):
                             privileged=PrivilegedGroups(self.raster, self.starts, self.robots), joint_frame=frame,
                             device=self.device if on_device else None, world=parts.world)
         #: whether the backend's arrays live on the device (torch) rather than on the host (numpy)
-        self.device_arrays = bool(getattr(self.core.backend, "device_arrays", False))
+        self.device_arrays = self.core.device_arrays
         #: the teacher labelling every control step (`frbench.training.teacher`), or None
         self.teacher = (EnvTeacher(self.robots.specs, self.robots.assignment, policy_pose, frame, cfg.action_scale,
                                    cfg.imitation_schedule()) if cfg.teacher else None)
