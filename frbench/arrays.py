@@ -33,6 +33,11 @@ _RESIDENT_SIZE = 256
 def namespace(*arrays):
     """The Array API namespace of ``arrays`` (None entries and Python scalars ignored); numpy's when none is
     an array. Kept per array type when all arrays have one (the step's hundreds of calls cost a dict lookup)."""
+    if len(arrays) == 1:  # the common call: one array
+        kind = type(arrays[0])
+        known = _NAMESPACES.get(kind)
+        if known is not None:
+            return known
     kinds = {type(a) for a in arrays if a is not None and not isinstance(a, (bool, int, float))}
     kind = next(iter(kinds)) if len(kinds) == 1 else None
     known = _NAMESPACES.get(kind)

@@ -240,14 +240,15 @@ class RecoveryTask:
         states = [step[0] for step in kept]
         base_pos, base_quat = _rows(states, "base_pos"), _rows(states, "base_quat")
         q = _rows(states, "q")
-        group_contact, body_force_max = _contact_rows([step[1] for step in kept])
+        metrics = self._metrics is not None and self._metrics is not _NO_EPISODE
+        group_contact, body_force_max = _contact_rows([step[1] for step in kept], metrics)
         xp = namespace(base_pos)
         diverged = xp.stack([step[2] for step in kept])
         gravity = xp.stack([step[3] for step in kept])
         signals = self._signals_of(base_pos, base_quat, q, gravity, group_contact)
         self._signals_now = StepSignals(*(None if a is None else a[-1] for a in _fields(signals)))
         self._success.update_steps(signals, alive=~diverged)
-        if self._metrics is not None and self._metrics is not _NO_EPISODE:
+        if metrics:
             self._metrics.update_steps(q, _rows(states, "qd"), _rows(states, "tau"), _rows(states, "base_angvel")[..., 0],
                                        body_force_max, signals.displacement, diverged)
 
@@ -368,17 +369,22 @@ def _rows(states: list[RobotState], name: str):
     return first[None] if len(states) == 1 else namespace(first).stack([getattr(s, name) for s in states])
 
 
-def _contact_rows(readings: list) -> tuple[np.ndarray, np.ndarray]:
-    """(group contact (k, N, G), largest non-foot force (k, N)) of k steps' `Contacts`; summarised together from
-    the stacked link forces when each reading summarises lazily by one rule (`SummarizedContacts`)."""
+def _contact_rows(readings: list, force: bool = True) -> tuple:
+    """(group contact (k, N, G), largest non-foot force (k, N), or None without ``force``) of k steps' `Contacts`;
+    summarised together from the stacked link forces when each reading summarises lazily by one rule
+    (`SummarizedContacts`)."""
     first = readings[0]
     xp = namespace(first.link_force)
-    if len(readings) > 1 and all(isinstance(c, SummarizedContacts) and c._layout is first._layout for c in readings):
+    if len(readings) == 1:
+        return first.group_contact[None], (first.body_force_max[None] if force else None)
+    if all(isinstance(c, SummarizedContacts) and c._layout is first._layout for c in readings):
         forces = xp.stack([c.link_force for c in readings])
         k, n = forces.shape[:2]
         together = SummarizedContacts(first._layout, xp.reshape(forces, (k * n, *forces.shape[2:])))
-        return xp.reshape(together.group_contact, (k, n, -1)), xp.reshape(together.body_force_max, (k, n))
-    return (xp.stack([c.group_contact for c in readings]), xp.stack([c.body_force_max for c in readings]))
+        return (xp.reshape(together.group_contact, (k, n, -1)),
+                xp.reshape(together.body_force_max, (k, n)) if force else None)
+    return (xp.stack([c.group_contact for c in readings]),
+            xp.stack([c.body_force_max for c in readings]) if force else None)
 
 
 def _fields(signals: StepSignals) -> list:

@@ -207,7 +207,7 @@ class RecoveryTrainingEnv(VecEnv):
             action = torch.as_tensor(executed, dtype=action.dtype, device=self.device) if self.device_arrays else executed
         reward, term_sums, alive = self.core.step(action)
         self.episode_length_buf += 1
-        log = {f"/reward/{k}": _alive_mean(v, alive) / self.core.actions.held for k, v in term_sums.items()}
+        log = {f"/reward/{k}": v / self.core.actions.held for k, v in _alive_means(term_sums, alive).items()}
         self.reward_means.add({k[len("/reward/"):]: v for k, v in log.items()})
         done = self.core.done
         if done:
@@ -240,11 +240,18 @@ class RecoveryTrainingEnv(VecEnv):
         self.core.close()
 
 
-def _alive_mean(values, alive):
-    """Mean of ``values`` (N,) over the ``alive`` (N,) environments (0 when none is): a float for numpy, a 0-d
-    tensor on the device for torch (read once per curve row, `LossLog`)."""
-    if not is_host(values):
-        return (values * alive).sum() / alive.sum().clamp(min=1)
+def _alive_means(values: dict, alive) -> dict:
+    """Each entry's mean (N,) over the ``alive`` (N,) environments (0 when none is): floats for numpy, 0-d tensors
+    on the device for torch (read once per curve row, `LossLog`; all terms in one reduction)."""
+    if not values or is_host(alive):
+        return {k: _alive_mean(v, alive) for k, v in values.items()}
+    stacked = torch.stack(list(values.values()))
+    means = (stacked * alive).sum(dim=1) / alive.sum().clamp(min=1)
+    return dict(zip(values, means.unbind()))
+
+
+def _alive_mean(values: np.ndarray, alive: np.ndarray) -> float:
+    """Mean of ``values`` (N,) over the ``alive`` (N,) environments (0 when none is)."""
     if alive.all():
         return float(np.mean(values))
     return float(np.mean(values[alive])) if alive.any() else 0.0
