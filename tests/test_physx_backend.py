@@ -66,7 +66,7 @@ def test_a_robot_needing_more_collision_groups_than_sapien_has_is_refused(monkey
         make_backend("physx", go2, 1)
 
 
-def test_the_scene_is_deterministic_tgs_and_leaves_sapiens_global_config_as_it_was(go2):
+def test_the_scene_is_deterministic_tgs_4_0_and_leaves_sapiens_global_config_as_it_was(go2):
     from frbench.backends.physx_scene import import_sapien
 
     sapien = import_sapien()
@@ -74,7 +74,8 @@ def test_the_scene_is_deterministic_tgs_and_leaves_sapiens_global_config_as_it_w
     sim = make_backend("physx", go2, 1)
     config = sim.sims[0].scene.physx_system.config
     assert config.enable_enhanced_determinism and config.enable_tgs
-    assert sim.sims[0].robot.get_solver_position_iterations() == 10
+    assert sim.sims[0].robot.get_solver_position_iterations() == 4  # legged_gym's TGS 4 / 0
+    assert sim.sims[0].robot.get_solver_velocity_iterations() == 0
     assert sapien.physx.get_scene_config().enable_enhanced_determinism == before
     sim.close()
 
@@ -116,11 +117,14 @@ def test_robot_stands_on_its_pd_for_two_seconds(name):
 
 
 @pytest.mark.parametrize("drop", DROP_TESTS)
-def test_drops_settle_where_mujoco_settles(go2, drop):
-    """Go2 holding its default pose, dropped; the base height after 2 s: PhysX within 1 cm of MuJoCo (measured
-    0.309 / 0.305, 0.168 / 0.168, 0.351 / 0.343 m; docs/physx.md)."""
-    heights = {name: drop_height(go2, name, drop) for name in ("physx", "mujoco")}
-    assert abs(heights["physx"] - heights["mujoco"]) < 0.01, heights
+def test_drops_settle_where_the_other_simulators_settle(go2, drop):
+    """Go2 holding its default pose, dropped; the base height after 2 s: PhysX within 5 mm of PyBullet (the other
+    rigid-contact engine) and 1.5 cm of MuJoCo (soft contacts: it sinks further into the step's edge). Measured
+    PhysX / MuJoCo / PyBullet: 0.311 / 0.305 / 0.309, 0.168 / 0.168 / 0.168, 0.354 / 0.343 / 0.352 m
+    (benchmarks/physx_agreement.py, docs/physx.md)."""
+    heights = {name: drop_height(go2, name, drop) for name in ("physx", "mujoco", "pybullet")}
+    assert abs(heights["physx"] - heights["pybullet"]) < 0.005, heights
+    assert abs(heights["physx"] - heights["mujoco"]) < 0.015, heights
     assert heights["physx"] > 0.15, heights
 
 

@@ -189,22 +189,19 @@ class PhysxBackend(ExplicitPdBatch):
         over the step (module docstring), on both links of a self-contact, summarised by group."""
         n_links = len(self.link_names)
         link_class = self._link_class
-        index, sign, impulses = [], [], []  # per contact point and link it acts on: (simulation, link) row, ±1
+        # per contact point and link it acts on: the (simulation, link) row, ±1 and the impulse; a link's rows keep
+        # the points' order, so its sum below is the same however the links' rows interleave
+        index, sign, impulses = [], [], []
         for i, sim in enumerate(self.sims):
             rows = self._row_of_index[i] + i * n_links
             for contact in sim.scene.get_contacts():
                 first, second = contact.bodies
-                acted = []
-                if isinstance(first, link_class):  # the impulses act on the first body
-                    acted.append((rows[first.get_index()], 1.0))
-                if isinstance(second, link_class):
-                    acted.append((rows[second.get_index()], -1.0))
-                for point in contact.points:
-                    impulse = point.impulse
-                    for row, direction in acted:
-                        index.append(row)
-                        sign.append(direction)
-                        impulses.append(impulse)
+                points = [point.impulse for point in contact.points]
+                for body, direction in ((first, 1.0), (second, -1.0)):  # the impulses act on the first body
+                    if isinstance(body, link_class):
+                        index += [rows[body.get_index()]] * len(points)
+                        sign += [direction] * len(points)
+                        impulses += points
         link_force = np.zeros((self.num_envs * n_links, 3))
         if index:  # added point after point (np.add.at): the sums' last bits are the same on any processor
             np.add.at(link_force, index, np.array(impulses, dtype=float) * (np.array(sign) / self.physics_dt)[:, None])

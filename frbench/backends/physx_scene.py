@@ -5,8 +5,10 @@
 * SAPIEN is imported quietly (`import_sapien`): on a machine without a system Vulkan loader its import warns
   ``Failed to find system libvulkan. Fallback to SAPIEN builtin libvulkan.``; frbench's scenes have no render
   system and never touch Vulkan, so that one message, matched by its text, is dropped;
-* the scene (`PhysxSettings`): the TGS solver with enhanced determinism (the same inputs give bit-identical
-  trajectories, so ``frbench verify`` is exact), no worker threads, the robot's physics step;
+* the scene (`PhysxSettings`): the TGS solver with 4 position and 0 velocity iterations, the settings legged_gym
+  (``LeggedRobotCfg.sim.physx``) and Isaac Lab's quadruped configurations train with, so that PhysX cells show
+  a policy in its training engine as it was set up there; enhanced determinism (the same inputs give
+  bit-identical trajectories, so ``frbench verify`` is exact), no worker threads, the robot's physics step;
 * the robot is frbench's simulation URDF (`frbench.robots.sim_urdf`), loaded by SAPIEN's URDF loader with a
   floating root; no link damping, no joint friction, damping or armature, no sleeping, and speed caps far above
   the divergence limit (PhysX caps link speeds at 10 m/s and 50 rad/s and joint speeds at 100 rad/s by default);
@@ -51,8 +53,8 @@ class PhysxSettings:
         max_joint_speed: cap on every joint's speed [rad/s].
     """
 
-    position_iterations: int = 10
-    velocity_iterations: int = 1
+    position_iterations: int = 4
+    velocity_iterations: int = 0
     enhanced_determinism: bool = True
     tgs: bool = True
     max_link_speed: float = 1e4
