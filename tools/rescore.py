@@ -106,23 +106,31 @@ class Job:
         return [c for c in self.chunks[grid] if not chunk_path(self.out, self.name, grid, *c[:3]).is_file()]
 
     def meta(self) -> dict:
-        """The record's meta file: source record, policy, the commit its first chunk ran (written once)."""
+        """The record's meta file: source record, policy, the protocol its chunks are for (``protocol_version``:
+        the current one unless a subclass targets another), the commit its first chunk ran (written once)."""
         from frbench.evaluation.provenance import frbench_info
         from frbench.io import atomic_write_text
-        from frbench.tasks.protocol import PROTOCOL_VERSION
 
+        version = self.protocol_version
         path = self.folder / "meta.json"
         if path.is_file():
             meta = json.loads(path.read_text())
-            if meta["protocol_version"] != PROTOCOL_VERSION:
-                raise SystemExit(f"{path}: chunks of protocol {meta['protocol_version']}, this frbench runs "
-                                 f"{PROTOCOL_VERSION}: move {self.folder} away to start over")
+            if meta["protocol_version"] != version:
+                raise SystemExit(f"{path}: chunks of protocol {meta['protocol_version']}, this job makes protocol "
+                                 f"{version}: move {self.folder} away to start over")
             return meta
         meta = {"record": self.record["id"], "name": self.name, "policy": self.reference,
-                "protocol_version": PROTOCOL_VERSION, "frbench": frbench_info(),
+                "protocol_version": version, "frbench": frbench_info(),
                 "submission": self.record["submission"]}
         atomic_write_text(path, json.dumps(meta, indent=1) + "\n")
         return meta
+
+    @property
+    def protocol_version(self) -> str:
+        """The protocol the job's results are for: the current one."""
+        from frbench.tasks.protocol import PROTOCOL_VERSION
+
+        return PROTOCOL_VERSION
 
     def run_chunk(self, grid: str, chunk: tuple) -> float:
         from frbench.evaluation.runner import run_cell
@@ -164,6 +172,16 @@ class Job:
         check_results(results)
         atomic_write_text(target, json.dumps(results, indent=1) + "\n")
         return target
+
+
+def run_logged_chunk(job: Job, grid: str, chunk: tuple) -> float:
+    """Run one chunk of ``job`` and log it (record, grid, robot, backend, terrain, cells, successes, seconds)."""
+    took = job.run_chunk(grid, chunk)
+    successes = sum(e["success"] for e in json.loads(
+        chunk_path(job.out, job.name, grid, *chunk[:3]).read_text())["episodes"])
+    log(job.out, f"{job.name} {grid} {chunk[0]} {chunk[1]} {chunk[2]}: {len(chunk[3])} cells, {successes} successes, "
+                 f"{took:.1f} s")
+    return took
 
 
 def write_status(out: Path, jobs: list[Job], seconds: dict[str, float]) -> dict:
@@ -272,13 +290,9 @@ def main(argv: list[str] | None = None) -> int:
                     write_status(args.out, jobs, seconds)
                     log(args.out, f"stop after {ran} chunks (--max-chunks)")
                     return 0
-                took = job.run_chunk(grid, chunk)
+                took = run_logged_chunk(job, grid, chunk)
                 ran += 1
                 seconds[job.name] = seconds.get(job.name, 0.0) + took
-                successes = sum(e["success"] for e in json.loads(
-                    chunk_path(args.out, job.name, grid, *chunk[:3]).read_text())["episodes"])
-                log(args.out, f"{job.name} {grid} {chunk[0]} {chunk[1]} {chunk[2]}: {len(chunk[3])} cells, "
-                              f"{successes} successes, {took:.1f} s")
                 write_status(args.out, jobs, seconds)
             for files in ((["unseen"], "unseen.json"), (["standard"], "standard.json"),
                           (["standard", "unseen"], "results.json")):

@@ -26,12 +26,19 @@ import argparse
 import json
 import os
 import sys
-import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from rescore import ROOT, Job, chunk_path, log, policy_reference, submit_finished  # noqa: E402
+from rescore import (  # noqa: E402
+    ROOT,
+    Job,
+    chunk_path,
+    log,
+    policy_reference,
+    run_logged_chunk,
+    submit_finished,
+)
 
 DEFAULT_OUT = ROOT / "runs" / "rescore-frame"
 GRID = "unseen"
@@ -132,12 +139,7 @@ def main(argv: list[str] | None = None) -> int:
     for job in jobs:
         job.meta()
         for chunk in job.pending(GRID):
-            started = time.monotonic()
-            job.run_chunk(GRID, chunk)
-            successes = sum(e["success"] for e in json.loads(
-                chunk_path(args.out, job.name, GRID, *chunk[:3]).read_text())["episodes"])
-            log(args.out, f"{job.name} {chunk[0]} {chunk[1]} {chunk[2]}: {len(chunk[3])} cells, {successes} successes, "
-                          f"{time.monotonic() - started:.1f} s")
+            run_logged_chunk(job, GRID, chunk)
         if job.assemble_frame() is not None:
             log(args.out, f"{job.name}: results.json complete")
     log(args.out, "finished")
