@@ -38,6 +38,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_OUT = ROOT / "runs" / "rescore-1.2"
 GRIDS = ("unseen", "standard")  # the order phases run in
+MAX_CHUNKS_HELP = "stop after this many chunks (0: run to the end)"
 
 
 def log(out: Path, text: str) -> None:
@@ -256,21 +257,33 @@ def submit_finished(out: Path, board: Path, origin=protocol_suffix) -> int:
     return 0
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"results folder (default {DEFAULT_OUT})")
+def job_arguments(doc: str, default_out: Path, records: str) -> argparse.ArgumentParser:
+    """The options every re-score tool takes: --out, --board, --only (``records``: which records by default),
+    --status, --submit."""
+    parser = argparse.ArgumentParser(description=doc.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=default_out, help=f"results folder (default {default_out})")
     parser.add_argument("--board", type=Path, default=ROOT / "leaderboard", help="leaderboard folder")
-    parser.add_argument("--only", default="", help="comma-separated record names (default: every main-board record)")
-    parser.add_argument("--grids", default=",".join(GRIDS), help="phases to run, in order (default unseen,standard)")
-    parser.add_argument("--max-chunks", type=int, default=0, help="stop after this many chunks (0: run to the end)")
-    parser.add_argument("--status", action="store_true", help="print the status and exit")
+    parser.add_argument("--only", default="", help=f"comma-separated record names (default: {records})")
+    parser.add_argument("--status", action="store_true", help="print where the job stands and exit")
     parser.add_argument("--submit", action="store_true", help="submit finished results to the board and exit")
-    args = parser.parse_args(argv)
+    return parser
+
+
+def single_threaded(out: Path) -> None:
+    """One MuJoCo and one torch thread in this process (the machine is shared); ``out`` made."""
     os.environ.setdefault("FRBENCH_MUJOCO_THREADS", "1")
     import torch
 
     torch.set_num_threads(1)
-    args.out.mkdir(parents=True, exist_ok=True)
+    out.mkdir(parents=True, exist_ok=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = job_arguments(__doc__, DEFAULT_OUT, "every main-board record")
+    parser.add_argument("--grids", default=",".join(GRIDS), help="phases to run, in order (default unseen,standard)")
+    parser.add_argument("--max-chunks", type=int, default=0, help=MAX_CHUNKS_HELP)
+    args = parser.parse_args(argv)
+    single_threaded(args.out)
     if args.submit:
         return submit_finished(args.out, args.board)
     records = board_records(args.board)

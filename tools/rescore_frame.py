@@ -22,7 +22,6 @@ differ); the board lists the record it re-scores as superseded (docs/protocol.md
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import sys
@@ -34,9 +33,11 @@ from rescore import (  # noqa: E402
     ROOT,
     Job,
     chunk_path,
+    job_arguments,
     log,
     policy_reference,
     run_logged_chunk,
+    single_threaded,
     submit_finished,
 )
 
@@ -111,18 +112,8 @@ class FrameJob(Job):
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"results folder (default {DEFAULT_OUT})")
-    parser.add_argument("--board", type=Path, default=ROOT / "leaderboard", help="leaderboard folder")
-    parser.add_argument("--only", default="", help="comma-separated record names (default: every such record)")
-    parser.add_argument("--status", action="store_true", help="print chunks done per record and exit")
-    parser.add_argument("--submit", action="store_true", help="submit finished results to the board and exit")
-    args = parser.parse_args(argv)
-    os.environ.setdefault("FRBENCH_MUJOCO_THREADS", "1")
-    import torch
-
-    torch.set_num_threads(1)
-    args.out.mkdir(parents=True, exist_ok=True)
+    args = job_arguments(__doc__, DEFAULT_OUT, "every such record").parse_args(argv)
+    single_threaded(args.out)
     if args.submit:
         return submit_finished(args.out, args.board, description_suffix)
     only = {n for n in args.only.split(",") if n}

@@ -19,7 +19,6 @@ by one. When a record's chunks are complete, ``--assemble`` writes its protocol 
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import sys
@@ -27,7 +26,16 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from rescore import ROOT, Job, chunk_path, log, run_logged_chunk  # noqa: E402
+from rescore import (  # noqa: E402
+    MAX_CHUNKS_HELP,
+    ROOT,
+    Job,
+    chunk_path,
+    job_arguments,
+    log,
+    run_logged_chunk,
+    single_threaded,
+)
 
 DEFAULT_OUT = ROOT / "runs" / "rescore-1.3"
 #: The protocol the re-scored records are for, and the simulator it adds to the grids.
@@ -85,18 +93,10 @@ def episodes_of(job: PhysxJob) -> list[dict]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"results folder (default {DEFAULT_OUT})")
-    parser.add_argument("--board", type=Path, default=ROOT / "leaderboard", help="leaderboard folder")
-    parser.add_argument("--only", default="", help="comma-separated record names (default: the whole main board)")
-    parser.add_argument("--max-chunks", type=int, default=0, help="stop after this many chunks (0: run to the end)")
-    parser.add_argument("--status", action="store_true", help="print chunks done per record and exit")
+    parser = job_arguments(__doc__, DEFAULT_OUT, "the whole main board")
+    parser.add_argument("--max-chunks", type=int, default=0, help=MAX_CHUNKS_HELP)
     args = parser.parse_args(argv)
-    os.environ.setdefault("FRBENCH_MUJOCO_THREADS", "1")
-    import torch
-
-    torch.set_num_threads(1)
-    args.out.mkdir(parents=True, exist_ok=True)
+    single_threaded(args.out)
     only = {n for n in args.only.split(",") if n}
     jobs = [PhysxJob(r, args.board, args.out) for r in main_board(args.board)
             if not only or r["submission"]["name"] in only]
