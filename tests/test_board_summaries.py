@@ -14,7 +14,8 @@ from frbench.cli import main
 from frbench.leaderboard import board as lb
 from frbench.leaderboard import summaries
 from frbench.leaderboard.records import load_records
-from frbench.leaderboard.render import render_html, render_json, render_markdown, render_table
+from frbench.leaderboard.markdown import render_markdown
+from frbench.leaderboard.render import render_html, render_json, render_table
 
 sys.path.insert(0, str(Path(__file__).parent))
 from results_factory import empty_board_copy, make_results, small_results, write_results  # noqa: E402

@@ -28,7 +28,9 @@ from frbench.leaderboard.records import (
     record_text,
     submission_fields,
 )
-from frbench.leaderboard.render import md_escape, page_data, render_html, render_markdown, script_json
+from frbench.leaderboard.formatting import md_escape
+from frbench.leaderboard.markdown import render_markdown
+from frbench.leaderboard.render import page_data, render_html, script_json
 from frbench.leaderboard.results import check_results
 from frbench.leaderboard.scores import main_track_shortfall
 from frbench.tasks.protocol import STANDARD_EPISODES, STANDARD_ROBOTS

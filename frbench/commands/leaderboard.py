@@ -78,7 +78,7 @@ def run_submit(args: argparse.Namespace) -> int:
         args.results, root, name=args.name, description=args.description, submitter=args.submitter,
         link=args.link, dry_run=args.dry_run, policy_file=args.policy_file,
     )
-    from frbench.leaderboard.render import fmt_score
+    from frbench.leaderboard.formatting import fmt_score
 
     record = outcome.record
     entry = record.get("policy_file")

@@ -40,7 +40,8 @@ from frbench.leaderboard.records import (
     submission_fields,
     write_record,
 )
-from frbench.leaderboard.render import render_html, render_markdown
+from frbench.leaderboard.markdown import render_markdown
+from frbench.leaderboard.render import render_html
 from frbench.leaderboard.summaries import load_summaries, remember
 from frbench.leaderboard.results import check_results
 from frbench.policies.references import split_reference

@@ -14,25 +14,21 @@ from __future__ import annotations
 import base64
 import hashlib
 import json
-from decimal import ROUND_HALF_UP, Decimal
 from typing import Iterable, Mapping, Sequence
 
-from frbench.evaluation.provenance import processor_label
+from frbench.leaderboard.formatting import fmt_gap, fmt_generalisation, fmt_interval, fmt_verified, processor_bound
 from frbench.leaderboard.page import PAGE_SCRIPT, PAGE_STYLE, PAGE_TEMPLATE
-from frbench.leaderboard.policy_files import MAX_POLICY_BYTES, policy_file_label
-from frbench.leaderboard.records import record_file_name
+from frbench.leaderboard.policy_files import policy_file_label
 from frbench.leaderboard.scores import (
     aggregate,
     check_same_protocol,
     groups_of,
     overlaps,
     rank_key,
-    needs_unseen_grid,
     scored_cells,
 )
 from frbench.leaderboard.sections import SIMULATOR_STATE, inputs_of, section_of, superseded
 from frbench.leaderboard.summaries import interval_views, record_generalisation, record_intervals
-from frbench.leaderboard.verify import RELATIVE_TOLERANCE, REPRODUCED_TOLERANCE
 from frbench.tasks.protocol import (
     KNOWN_PROTOCOL_VERSIONS,
     PROTOCOL_VERSION,
@@ -44,7 +40,6 @@ from frbench.tasks.protocol import (
     STANDARD_TERRAINS,
 )
 
-BACKEND_LABELS = {"mujoco": "MuJoCo", "pybullet": "PyBullet"}
 PROVENANCE_FIELDS = ("schema_version", "protocol_version", "frbench", "versions", "created", "processor", "policy", "config",
                      "robots")
 
@@ -62,59 +57,12 @@ def _identity(record: dict) -> dict:
             "policy_file": policy_file_label(record.get("policy_file")), "verified": verified}
 
 
-def processor_bound(record: Mapping) -> bool:
-    """Whether a verification of the record holds only on the processor that ran it: a learned policy (one with
-    a checkpoint) evaluated before protocol 1.2, whose float32 inference depends on the CPU's vector kernels."""
-    results = record["results"]
-    return results["policy"].get("sha256") is not None and not needs_unseen_grid(results["protocol_version"])
-
-
-#: The note on a processor-bound verification (`processor_bound`), marked with a dagger.
-PROCESSOR_BOUND_NOTE = (
-    "† verified on the verifying machine's processor only: the policy is learned and ran float32 inference, whose "
-    "last bits depend on the CPU's vector kernels (on an AVX-512 machine `frbench verify f3a8b4dd2ded --sample 4 "
-    "--seed 1` fails 4/4; so do dreamriser-3m and frnet-no-stability-15m). Protocol 1.2 infers in float64 with "
-    "float32-rounded actions, so its records verify on any x86-64 machine (docs/protocol.md).")
-
-
-def fmt_verified(verified: Mapping | None) -> str:
-    """``16 exact``: the episodes a passed verification reproduced and its tier (``exact`` / ``reproduced``;
-    a verification saved before tiers: how it compared them, ``exact`` / ``tolerance``) (``†``: on its
-    processor only, `processor_bound`); ``-`` if none."""
-    if not verified:
-        return "-"
-    return f"{verified['sample']} {verified.get('tier', verified['mode'])}" + (" †" if verified.get("processor_bound") else "")
-
-
-def _how_reproduced(check: Mapping) -> str:
-    """How a saved verification reproduced the episodes: its tier, or (saved before tiers) its mode."""
-    tier = check.get("tier")
-    if tier == "exact" or (tier is None and check["mode"] == "exact"):
-        return "bit-identical"
-    if tier is None:
-        return "within tolerance"
-    return (f"tier reproduced: outcomes equal, metrics within {check['tolerance']:g} relative, largest deviation "
-            f"{check['largest_deviation']:.2g}")
-
-
-def fmt_generalisation(row: Mapping, key: str) -> str:
-    """A row's unseen score (``unseen``), matched standard score (``matched``), gap (``gap``) or humanoid score
-    (``humanoids``: n/a when the policy drives none) with its interval; ``-`` for a record without the unseen grid."""
-    g = row.get("generalisation")
-    if g is None:
-        return "-"
-    if key == "gap":
-        return fmt_gap(g["gap"])
-    value = g[key]
-    return "n/a" if value is None else fmt_interval(value[0], value[1:])
-
-
 def _ordered(standard: Sequence, found: Iterable) -> list:
     found = set(found)
     return [x for x in standard] + sorted(found - set(standard), key=str)
 
 
-def _standard_text() -> str:
+def standard_text() -> str:
     return (
         f"{len(STANDARD_ROBOTS)} robots ({', '.join(STANDARD_ROBOTS)}) x {len(STANDARD_BACKENDS)} backends "
         f"({', '.join(STANDARD_BACKENDS)}) x {len(STANDARD_TERRAINS)} terrain families ({', '.join(STANDARD_TERRAINS)}) "
@@ -196,30 +144,6 @@ def unseen_ranking(main: Sequence[Mapping]) -> list[dict]:
     return out
 
 
-def fmt_score(value: float | None) -> str:
-    """Three decimals, ties rounded up like JavaScript's ``toFixed`` so the page and README agree."""
-    if value is None:
-        return "-"
-    return str(Decimal(value).quantize(Decimal("0.001"), rounding=ROUND_HALF_UP))
-
-
-def fmt_interval(value: float | None, interval: Sequence[float] | None) -> str:
-    """``0.354 (0.343-0.365)``: a score and its 95 % interval; ``-`` when there is no score."""
-    if value is None:
-        return "-"
-    if interval is None:
-        return fmt_score(value)
-    return f"{fmt_score(value)} ({fmt_score(interval[0])}-{fmt_score(interval[1])})"
-
-
-def fmt_gap(interval: Sequence[float] | None) -> str:
-    """The signed gap MuJoCo − PyBullet with its interval, ``+0.012 (-0.004-+0.027)``; ``-`` without both."""
-    if interval is None:
-        return "-"
-    sign = lambda v: ("+" if v >= 0 else "-") + fmt_score(abs(v))  # noqa: E731
-    return f"{sign(interval[0])} ({sign(interval[1])}..{sign(interval[2])})"
-
-
 # --------------------------------------------------------------------------- text and JSON
 
 
@@ -290,205 +214,6 @@ def render_table(records: Sequence[Mapping], **filters) -> str:
     return "\n".join(out)
 
 
-# --------------------------------------------------------------------------- Markdown
-
-_MD_SPECIAL = set("\\`*_[]<>|~&#!")
-
-
-def md_escape(text: str) -> str:
-    """Escape text for a Markdown table cell or paragraph (no markup, links or HTML survive)."""
-    return "".join("\\" + ch if ch in _MD_SPECIAL else ch for ch in str(text))
-
-
-def _md_row(values: Iterable[str]) -> str:
-    return "| " + " | ".join(values) + " |"
-
-
-def _unseen_text() -> str:
-    from frbench.evaluation.grids import unseen_part
-
-    part = unseen_part()
-    return (f"{len(part.robots)} real quadrupeds no policy trains on ({', '.join(part.robots)}) x both backends x "
-            f"{', '.join(part.terrains)} x levels {'/'.join(map(str, part.levels))} x seeds "
-            f"{'/'.join(map(str, part.seeds))}, {part.episodes} episodes per cell")
-
-
-def unseen_table(ranking: Sequence[Mapping]) -> list[str]:
-    """The Markdown table of `unseen_ranking`."""
-    if not ranking:
-        return ["_No record has the unseen grid yet._", ""]
-    out = [_md_row(["#", "Name", "Unseen", "Matched std", "Matched − unseen", "Humanoids", "Main-board rank", "Record"]),
-           _md_row(["---"] * 8)]
-    for row in ranking:
-        out.append(_md_row([
-            str(row["rank"]) + (" ~" if row["tied_above"] else ""), md_escape(row["name"]),
-            f"**{fmt_interval(row['unseen'][0], row['unseen'][1:])}**",
-            fmt_interval(row["matched"][0], row["matched"][1:]), fmt_gap(row["gap"]),
-            "n/a" if row["humanoids"] is None else fmt_interval(row["humanoids"][0], row["humanoids"][1:]),
-            str(row["board_rank"]), f"[{row['id'][:12]}](records/{record_file_name(row['id'])})",
-        ]))
-    return out + [""]
-
-
-def render_markdown(records: Sequence[Mapping]) -> str:
-    """``leaderboard/README.md``."""
-    data = board(records)
-    shown = axes(records)
-    families, backends = shown["families"], shown["backends"]
-    lines = [
-        "# frbench leaderboard",
-        "",
-        "<!-- Generated by `frbench leaderboard --format md` from records/*.json.gz; do not edit by hand. -->",
-        "",
-        "Fall-recovery policies evaluated with `frbench evaluate`, submitted with",
-        "`frbench submit RESULTS.json --name NAME --submitter WHO --description TEXT --link URL [--policy-file FILE]`.",
-        "",
-        f"*Policy file*: the record carries the policy that produced it (`--policy-file`, at most "
-        f"{MAX_POLICY_BYTES // 2**20} MiB, stored as",
-        "`policies/<sha256><suffix>`; a checkpoint shipped in frbench is referred to by its sha256). `frbench verify RECORD [--sample N] [--seed S]` re-runs a seeded random",
-        "sample of a record's episodes from its provenance with that policy (or with the shipped checkpoint of the",
-        "same sha256, or a built-in policy by name, re-run with the checkout's code) and compares them episode by",
-        "episode, naming the tier reached and the processors that made and re-ran the record: *exact* (bit-identical),",
-        "*reproduced* (the same success, rollover, divergence, initial pose and start redraws, time to recover within",
-        f"one control period and the other metrics within {REPRODUCED_TOLERANCE:g} relative where the library versions "
-        f"match, else within {RELATIVE_TOLERANCE:g}),",
-        "*consistent* (a foreign policy's successes pass a statistical check; verifies nothing) or *failed*, when it",
-        "exits 1 and lists the differences (docs/protocol.md). *Verified*: episodes reproduced by `frbench verify --save`,",
-        "and the tier (saved before tiers: *exact* or *tolerance*, how they were compared).",
-        "Open [index.html](index.html) for filters by robot, backend and terrain family, success-vs-level",
-        "charts and each record's provenance.",
-        "",
-        f"Current protocol: {PROTOCOL_VERSION} ([docs/protocol.md](../docs/protocol.md)); accepted versions: "
-        f"{', '.join(KNOWN_PROTOCOL_VERSIONS)}. Records follow",
-        "[schema/record-v1.schema.json](schema/record-v1.schema.json); each file in `records/` is named by the",
-        "sha256 of its results. Scores are recomputed from each record's cells: the mean success rate over cells",
-        "(one cell = robot x backend x terrain x level x seed), per terrain family and per backend. Beside each",
-        "score, in parentheses, its 95 % interval from a stratified bootstrap over cells and episodes (rliable's",
-        "procedure, `frbench/evaluation/intervals.py`). *Gap* is the signed sim-to-sim gap MuJoCo - PyBullet",
-        "(mean over robot x terrain x level) with its interval. Records of different protocol versions are never",
-        "ranked together: only the current version is ranked; earlier versions are archived below.",
-        "",
-        f"## Main board (protocol {PROTOCOL_VERSION})",
-        "",
-        f"Records that cover the standard grid: {_standard_text()}; from protocol 1.2 on also the unseen grid",
-        "(below; a 1.2 record without it is partial). *Overall* and the columns up to *Gap* are the standard grid's.",
-        "Ranked by overall success, then by sim-to-sim gap. A `~` after a rank: the record's overall interval",
-        "overlaps the one of the record above it, so their order is not established by the data.",
-        "",
-    ]
-    header = ["Name", "Policy", "Submitter", "Overall"] + [md_escape(f) for f in families] \
-        + [BACKEND_LABELS.get(b, md_escape(b)) for b in backends] \
-        + ["Gap", "Matched std", "Unseen", "Matched − unseen", "Humanoids", "Policy file", "Verified", "Record"]
-
-    def table(rows: list[dict], ranked: bool, protocol: bool = False) -> list[str]:
-        if not rows:
-            return ["_No records yet._" if ranked and not protocol else "_None._", ""]
-        head = (["#"] if ranked else []) + header[:3] + (["Protocol"] if protocol else []) + (["Cells"] if protocol or not ranked else []) + header[3:]
-        out = [_md_row(head), _md_row(["---"] * len(head))]
-        for row in rows:
-            s, iv = row["scores"], row["intervals"]
-            state = " (simulator state)" if row["inputs"] == SIMULATOR_STATE else ""
-            later = f" (superseded by {row['superseded_by'][:12]})" if row.get("superseded_by") else ""
-            values = [md_escape(row["name"]) + later, md_escape(row["policy"]) + state, md_escape(row["submitter"])]
-            if protocol:
-                values.append(md_escape(row["protocol_version"]))
-            if protocol or not ranked:
-                values.append(str(s["cells"]))
-            overall = fmt_interval(s["overall"], iv["overall"])
-            values += [f"**{overall}**" if ranked else overall]
-            values += [fmt_interval(s["per_family"].get(f), iv["per_family"].get(f)) for f in families]
-            values += [fmt_interval(s["per_backend"].get(b), iv["per_backend"].get(b)) for b in backends]
-            file = (f"[{row['policy_file'][9:21]}]({row['policy_file']})" if row["policy_file"].startswith("policies/")
-                    else md_escape(row["policy_file"])) if row["policy_file"] else "-"
-            values += [fmt_gap(iv["signed_gap"]), fmt_generalisation(row, "matched"), fmt_generalisation(row, "unseen"),
-                       fmt_generalisation(row, "gap"),
-                       fmt_generalisation(row, "humanoids"), file, fmt_verified(row["verified"]),
-                       f"[{row['id'][:12]}](records/{record_file_name(row['id'])})"]
-            rank = [(str(row["rank"]) + (" ~" if row["tied_above"] else "")) if "rank" in row else "-"] if ranked else []
-            out.append(_md_row(rank + values))
-        return out + [""]
-
-    lines += table(data["main"], True)
-    lines += [
-        f"### Ranked by unseen success (protocol {PROTOCOL_VERSION})",
-        "",
-        f"The main board by mean success on the unseen grid: {_unseen_text()}. *Matched std*: the standard grid's",
-        "cells on the same families and levels (the five training-distribution robots, 320 cells); *Matched − unseen*:",
-        "their difference with its 95 % interval (both resampled): what the policy loses on bodies it never trained on,",
-        "terrain held equal. *Humanoids*: the unseen humanoid set (Talos, iCub) for a policy that drives humanoids, n/a",
-        "for the others.",
-        "",
-    ]
-    lines += unseen_table(data["unseen_ranking"])
-    lines += [
-        f"## Partial records (protocol {PROTOCOL_VERSION})",
-        "",
-        "Records that do not cover the whole standard grid, scored on the cells they have; not ranked",
-        "against the main board.",
-        "",
-    ]
-    lines += table(data["partial"], False)
-    lines += [
-        "## Archived records (earlier protocol versions, superseded records)",
-        "",
-        "Records evaluated under an earlier protocol. Their numbers mean something else (docs/protocol.md lists",
-        f"what changed), so they are never ranked against protocol {PROTOCOL_VERSION}; records that covered that",
-        "version's standard grid are ranked among themselves (`~`: interval overlaps the one above), the rest (`-`) not.",
-        f"A protocol {PROTOCOL_VERSION} record *superseded by* another ran a learned policy in each robot's own joint",
-        "convention; the record named re-scores the same policy file in the canonical joint frame (docs/protocol.md,",
-        "\"The joint frame\"). Each record id keeps meaning its own results.",
-        "",
-    ]
-    lines += table(data["archived"], True, protocol=True)
-    if any((row.get("verified") or {}).get("processor_bound") for row in data["archived"]):
-        lines += [PROCESSOR_BOUND_NOTE, ""]
-    by_id = {r["id"]: r for r in records}
-    rows = data["main"] + data["partial"] + data["archived"]
-    lines += ["## Records", ""]
-    if not rows:
-        lines += ["_No records yet._", ""]
-    for row in rows:
-        results = by_id[row["id"]]["results"]
-        fb = results["frbench"]
-        commit = fb["git_commit"][:12]
-        versions = ", ".join(f"{md_escape(k)} {md_escape(v)}" for k, v in sorted(results["versions"].items()) if v is not None)
-        policy = results["policy"]
-        checkpoint = f"checkpoint sha256 `{policy['sha256'][:16]}…`" if policy["sha256"] else "no checkpoint"
-        link = f" — <{row['link']}>" if row["link"] else ""
-        section = section_of(by_id[row["id"]])
-        lines.append(f"- **{md_escape(row['name'])}** (`{row['id'][:12]}`, {section}, submitted {row['submitted']} "
-                     f"by {md_escape(row['submitter'])}){link}")
-        if row["description"]:
-            lines.append(f"  - {md_escape(row['description'])}")
-        lines.append(
-            f"  - Protocol {md_escape(results['protocol_version'])}, frbench {md_escape(fb['version'])} ({commit}), "
-            f"{versions}; policy {md_escape(policy['name'])}, {checkpoint}; "
-            f"seeds {', '.join(map(str, results['config']['seeds']))}, {results['config']['episodes']} episodes per cell, "
-            f"noise {'on' if results['config']['noise'] else 'off'}."
-        )
-        record = by_id[row["id"]]
-        if "policy_file" in record:
-            attached = record["policy_file"]
-            if "shipped" in attached:
-                lines.append(f"  - Policy file: the checkpoint shipped in frbench as {md_escape(attached['shipped'])} "
-                             f"(sha256 {attached['sha256'][:12]}), {attached['bytes']} bytes.")
-            else:
-                lines.append(f"  - Policy file attached: [{attached['file']}]({attached['file']}), {attached['bytes']} bytes.")
-        if "processor" in results:
-            lines.append(f"  - Evaluated on {md_escape(processor_label(results['processor']))}.")
-        for check in record.get("verifications", []):
-            lines.append(
-                f"  - Verified {check['verified']}: `frbench verify --sample {check['sample']} --seed {check['seed']}` re-ran "
-                f"{check['sample']} episodes in {check['cells']} cells with the {check['policy']} policy at frbench "
-                f"{check['frbench_commit'][:12]} and reproduced them ({_how_reproduced(check)})"
-                + (f" on {md_escape(processor_label(check['processor']))}" if "processor" in check else "")
-                + (" on that machine's processor only †." if processor_bound(record) else ".")
-            )
-    if rows:
-        lines.append("")
-    return "\n".join(lines)
-
-
 # --------------------------------------------------------------------------- HTML
 
 
@@ -513,7 +238,7 @@ def page_data(records: Sequence[Mapping]) -> dict:
     return {
         "page_version": 2,
         **axes(records),
-        "standard": _standard_text(),
+        "standard": standard_text(),
         "protocol": PROTOCOL_VERSION,
         "protocols": list(KNOWN_PROTOCOL_VERSIONS),
         "records": entries,
