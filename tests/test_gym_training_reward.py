@@ -4,7 +4,6 @@ import numpy as np
 import pytest
 import torch
 
-from frbench.backends.base import RobotState
 from frbench.gym import FallRecoveryVectorEnv
 from frbench.training.config import TrainEnvConfig
 from frbench.training.env import RecoveryTrainingEnv

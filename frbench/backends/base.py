@@ -38,7 +38,6 @@ knows which simulator runs):
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
-from functools import lru_cache
 from typing import Protocol
 
 import numpy as np

@@ -72,9 +72,9 @@ class ContactLayout:
         """(N, n_groups) bool: any link of the group touches, from ``touching`` (N, n_links) bool (numpy or torch)."""
         if is_host(touching):
             return touching @ self.membership
-        xp = namespace(touching)  # torch multiplies no booleans: counts of touching links, then > 0
-        membership = resident(self.membership, touching, xp.float32)
-        return (xp.astype(touching, xp.float32) @ membership) > 0
+        xp = namespace(touching)  # torch multiplies no booleans: any link of the group, elementwise (no BLAS call)
+        membership = resident(self.membership, touching, xp.bool)
+        return xp.any(touching[:, :, None] & membership[None], axis=1)
 
     def knee_sum(self, link_force):
         """(N, n_knee_groups, 3) [N]: each knee group's forces added link after link, from (N, n_links, 3)."""
