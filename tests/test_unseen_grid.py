@@ -138,7 +138,7 @@ def test_evaluate_grid_unseen_writes_the_grid_into_the_results(tmp_path, capsys,
 
     small = dataclasses.replace(unseen_part(), robots=("a1",), backends=("mujoco",), terrains=("flat",), levels=(1,),
                                 seeds=(0,), episodes=2)
-    monkeypatch.setattr(grids, "grid_parts", lambda name: (small, dataclasses.replace(small, robots=("icub",))))
+    monkeypatch.setattr(grids, "grid_parts", lambda name, version=None: (small, dataclasses.replace(small, robots=("icub",))))
     out = tmp_path / "unseen.json"
     status = main(["evaluate", "--grid", "unseen", "--policy", "scripted", "--jobs", "1", "--out", str(out)])
     captured = capsys.readouterr()

@@ -25,7 +25,7 @@ from frbench.io import sha256_file
 from frbench.policies.registry import load_policy
 from frbench.robots import get_robot
 from frbench.robots.sim_urdf import sim_robot_file
-from frbench.tasks.protocol import PROTOCOL_VERSION, RESULTS_SCHEMA_VERSION
+from frbench.tasks.protocol import KNOWN_PROTOCOL_VERSIONS, PROTOCOL_VERSION, RESULTS_SCHEMA_VERSION
 from frbench.terrains import FAMILIES
 
 
@@ -59,6 +59,9 @@ class EvaluationRequest:
     #: Where a device simulator (``mujoco-warp``) runs (`frbench.backends.devices.parse_device`'s value); the CPU
     #: simulators run on ``cpu``. Recorded in the results' config when it is not ``cpu``.
     device: str = "cpu"
+    #: The protocol whose named grids `grid` means and whose number the results carry: the current one (a re-score
+    #: tool makes another known version's records, e.g. tools/rescore_physx.py protocol 1.3's).
+    protocol_version: str = PROTOCOL_VERSION
 
     def cells(self) -> list[Cell]:
         """Every cell of the grid that runs (none of `refused`), in a fixed order."""
@@ -80,7 +83,7 @@ def apply_grids(request: EvaluationRequest, policy) -> None:
         return
     from frbench.evaluation.grids import resolve_grids
 
-    resolved = resolve_grids(request.grid, lambda name: policy.supports(get_robot(name)))
+    resolved = resolve_grids(request.grid, lambda name: policy.supports(get_robot(name)), request.protocol_version)
     axes = resolved.axes
     request.robots, request.backends, request.terrains = list(axes.robots), list(axes.backends), list(axes.terrains)
     request.levels, request.seeds, request.episodes = list(axes.levels), list(axes.seeds), axes.episodes
@@ -91,6 +94,8 @@ def validate(request: EvaluationRequest):
     """Resolve and check every name and number before anything runs; returns the policy."""
     if request.executor not in EXECUTORS:
         raise unknown_name("executor", request.executor, EXECUTORS)
+    if request.protocol_version not in KNOWN_PROTOCOL_VERSIONS:
+        raise unknown_name("protocol version", request.protocol_version, KNOWN_PROTOCOL_VERSIONS)
 
     for backend in request.backends:
         if backend not in BACKENDS:
@@ -124,8 +129,9 @@ def validate(request: EvaluationRequest):
     return policy
 
 
-#: Request fields that say how the grid ran, not what it measured: left out of the results' config.
-RUN_ONLY_FIELDS = ("jobs", "executor", "address", "cell_keys")
+#: Request fields that say how the grid ran, not what it measured: left out of the results' config
+#: (``protocol_version`` is the results' own field).
+RUN_ONLY_FIELDS = ("jobs", "executor", "address", "cell_keys", "protocol_version")
 #: Fields recorded only when the request names grids (a custom grid's config stays as before 1.2).
 GRID_FIELDS = ("grid", "not_scored")
 
@@ -194,7 +200,7 @@ def build_results(request: EvaluationRequest, policy, episodes: list[dict], code
               and (k != "device" or v != "cpu")}
     return {
         "schema_version": RESULTS_SCHEMA_VERSION,
-        "protocol_version": PROTOCOL_VERSION,
+        "protocol_version": request.protocol_version,
         "frbench": code or frbench_info(),
         "versions": library_versions(),
         "created": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),

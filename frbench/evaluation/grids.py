@@ -1,15 +1,19 @@
 """The protocol's named evaluation grids: ``standard`` and ``unseen`` (protocol 1.2, docs/protocol.md).
 
 A grid is one or more *parts*, each a product robots x backends x terrains x
-levels x seeds with a fixed episode count:
+levels x seeds with a fixed episode count; its simulators are those of the
+protocol version (`frbench.tasks.protocol.grid_backends`: MuJoCo and PyBullet,
+PhysX too from 1.3 on), every function here takes the version (the current one
+by default):
 
-* ``standard``: the five quadrupeds training samples around x both backends x the
-  seven families x levels 1, 5, 10 x seeds 0-3 x 3 episodes (840 cells);
-* ``unseen``: the real quadrupeds of `frbench.robots.unseen` x both backends x
+* ``standard``: the five quadrupeds training samples around x the simulators x the
+  seven families x levels 1, 5, 10 x seeds 0-3 x 3 episodes (840 cells in two
+  simulators, 1260 in three);
+* ``unseen``: the real quadrupeds of `frbench.robots.unseen` x the simulators x
   flat, rough, slopes, stairs x levels 1, 5 x seeds 0-3 x 3 episodes (576
-  cells), plus the same product over the unseen humanoids for a policy that
-  drives humanoids. A policy that does not gets no humanoid cells: its
-  humanoid score is "n/a" (`not_scored`), never 0.
+  cells in two simulators, 864 in three), plus the same product over the unseen
+  humanoids for a policy that drives humanoids. A policy that does not gets no
+  humanoid cells: its humanoid score is "n/a" (`not_scored`), never 0.
 
 ``frbench evaluate --grid standard,unseen`` runs the union of the parts; the
 results' ``config.grid`` names the grids, ``config.not_scored`` the robots a
@@ -44,26 +48,27 @@ class GridPart:
         return list(itertools.product(chosen, self.backends, self.terrains, self.levels, self.seeds))
 
 
-def standard_part() -> GridPart:
-    """The standard grid (`frbench.tasks.protocol` STANDARD_*)."""
+def standard_part(version: str = protocol.PROTOCOL_VERSION) -> GridPart:
+    """The standard grid (`frbench.tasks.protocol` STANDARD_*) under protocol ``version``."""
     p = protocol
-    return GridPart(p.STANDARD_ROBOTS, p.STANDARD_BACKENDS, p.STANDARD_TERRAINS, p.STANDARD_LEVELS, p.STANDARD_SEEDS,
-                    p.STANDARD_EPISODES)
+    return GridPart(p.STANDARD_ROBOTS, p.grid_backends(version), p.STANDARD_TERRAINS, p.STANDARD_LEVELS,
+                    p.STANDARD_SEEDS, p.STANDARD_EPISODES)
 
 
-def unseen_part(humanoids: bool = False) -> GridPart:
-    """The unseen grid's quadrupeds, or (``humanoids``) its humanoid set."""
+def unseen_part(humanoids: bool = False, version: str = protocol.PROTOCOL_VERSION) -> GridPart:
+    """The unseen grid's quadrupeds, or (``humanoids``) its humanoid set, under protocol ``version``."""
     p = protocol
     robots = p.unseen_humanoids() if humanoids else p.unseen_quadrupeds()
-    return GridPart(robots, p.STANDARD_BACKENDS, p.UNSEEN_TERRAINS, p.UNSEEN_LEVELS, p.UNSEEN_SEEDS, p.UNSEEN_EPISODES)
+    return GridPart(robots, p.grid_backends(version), p.UNSEEN_TERRAINS, p.UNSEEN_LEVELS, p.UNSEEN_SEEDS,
+                    p.UNSEEN_EPISODES)
 
 
-def grid_parts(name: str) -> tuple[GridPart, ...]:
-    """The parts of a named grid (the unseen grid's humanoid set is its second part)."""
+def grid_parts(name: str, version: str = protocol.PROTOCOL_VERSION) -> tuple[GridPart, ...]:
+    """The parts of a named grid under protocol ``version`` (the unseen grid's humanoid set is its second part)."""
     if name == "standard":
-        return (standard_part(),)
+        return (standard_part(version),)
     if name == "unseen":
-        return (unseen_part(), unseen_part(humanoids=True))
+        return (unseen_part(version=version), unseen_part(humanoids=True, version=version))
     raise FrbenchError(f"--grid {name!r}: unknown grid; known: {', '.join(GRID_NAMES)}")
 
 
@@ -96,13 +101,13 @@ def _union(values) -> tuple:
     return tuple(dict.fromkeys(values))
 
 
-def resolve_grids(names: Sequence[str], supports) -> ResolvedGrid:
-    """The cells of ``names`` for a policy: ``supports(robot_name) -> bool`` says whether it drives a robot. A
-    part's robots the policy cannot drive go to ``not_scored`` (name -> reason); a grid whose every quadruped
-    is undrivable is an error."""
+def resolve_grids(names: Sequence[str], supports, version: str = protocol.PROTOCOL_VERSION) -> ResolvedGrid:
+    """The cells of ``names`` under protocol ``version`` for a policy: ``supports(robot_name) -> bool`` says whether
+    it drives a robot. A part's robots the policy cannot drive go to ``not_scored`` (name -> reason); a grid whose
+    every quadruped is undrivable is an error."""
     robots, not_scored, keys, parts = [], {}, [], []
     for name in names:
-        for index, part in enumerate(grid_parts(name)):
+        for index, part in enumerate(grid_parts(name, version)):
             drivable = [r for r in part.robots if supports(r)]
             for robot in part.robots:
                 if robot not in drivable:
@@ -122,16 +127,16 @@ def resolve_grids(names: Sequence[str], supports) -> ResolvedGrid:
     return ResolvedGrid(tuple(names), axes, tuple(dict.fromkeys(keys)), dict(not_scored))
 
 
-def expected_cell_keys(config: Mapping) -> set[tuple] | None:
-    """The cells results of ``config`` must hold when it names grids (None: a plain product of its axes).
-    A grid part contributes its cells for the robots ``config.robots`` lists (a humanoid set that was not
-    scored contributes none)."""
+def expected_cell_keys(config: Mapping, version: str = protocol.PROTOCOL_VERSION) -> set[tuple] | None:
+    """The cells results of ``config`` under protocol ``version`` must hold when it names grids (None: a plain
+    product of its axes). A grid part contributes its cells for the robots ``config.robots`` lists (a humanoid set
+    that was not scored contributes none)."""
     names = config.get("grid")
     if not names:
         return None
     keys: set[tuple] = set()
     for name in names:
-        for part in grid_parts(name):
+        for part in grid_parts(name, version):
             keys.update(part.keys(config["robots"]))
     return keys
 

@@ -73,20 +73,21 @@ def percentile_interval(replicates: np.ndarray, successes: int | None = None,
     return float(low), float(high)
 
 
-def sim_to_sim_gaps(cells: Sequence[Mapping], rates: np.ndarray) -> np.ndarray | None:
-    """Per replicate (rows of ``rates``, columns in ``sorted_cells`` order) the signed sim-to-sim gap: the mean
-    over (robot, terrain, level) with both backends of mean over seeds (mujoco) − mean over seeds (pybullet);
-    None without such pairs. (The mean *absolute* gap is biased upward by sampling noise — with 4 seeds × 8
+def sim_to_sim_gaps(cells: Sequence[Mapping], rates: np.ndarray, first: str = "mujoco",
+                    second: str = "pybullet") -> np.ndarray | None:
+    """Per replicate (rows of ``rates``, columns in ``sorted_cells`` order) the signed sim-to-sim gap ``first`` −
+    ``second`` (MuJoCo − PyBullet by default): the mean over (robot, terrain, level) with both simulators of mean
+    over seeds (first) − mean over seeds (second); None without such pairs. (The mean *absolute* gap is biased upward by sampling noise — with 4 seeds × 8
     episodes per cell its bootstrap distribution lies wholly above the point estimate — so its interval would
     mislead; the signed mean gap is unbiased.)"""
     cells = sorted_cells(cells)
     groups: dict[tuple, dict[str, list[int]]] = {}
     for j, c in enumerate(cells):
         groups.setdefault((c["robot"], c["terrain"], c["level"]), {}).setdefault(c["backend"], []).append(j)
-    pairs = [g for g in groups.values() if "mujoco" in g and "pybullet" in g]
+    pairs = [g for g in groups.values() if first in g and second in g]
     if not pairs:
         return None
-    gaps = [rates[:, g["mujoco"]].mean(axis=1) - rates[:, g["pybullet"]].mean(axis=1) for g in pairs]
+    gaps = [rates[:, g[first]].mean(axis=1) - rates[:, g[second]].mean(axis=1) for g in pairs]
     return np.mean(gaps, axis=0)
 
 

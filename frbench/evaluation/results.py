@@ -5,18 +5,20 @@ Layout (schema_version 1, JSON Schema in ``frbench/schemas/results-v1.schema.jso
 backend, terrain, level) with the success rate's mean over seeds, the pooled
 successes / episodes and their 95 % Wilson interval (``ci95``; the std over
 seeds is kept for the schema but never shown: with one seed it is 0);
-``sim_to_sim`` per (robot, terrain, level) with each backend's mean and the
-gap MuJoCo − PyBullet; ``episodes`` keeps every episode. Aggregates over many
+``sim_to_sim`` per (robot, terrain, level) with each grid simulator's mean and
+the gap of each pair (MuJoCo − PyBullet, MuJoCo − PhysX, PyBullet − PhysX); ``episodes`` keeps every episode. Aggregates over many
 cells get stratified-bootstrap intervals (`frbench.evaluation.intervals`).
 """
 
 from __future__ import annotations
 
+import itertools
 from collections import defaultdict
 
 import numpy as np
 
 from frbench.evaluation.intervals import bootstrap_rates, percentile_interval, sim_to_sim_gaps, sorted_cells, wilson_interval
+from frbench.tasks.protocol import GRID_SIMULATORS
 
 CELL_KEYS = ("robot", "backend", "terrain", "level", "seed")
 _MEANS = {
@@ -73,16 +75,31 @@ def summarize(cells: list[dict]) -> list[dict]:
     return rows
 
 
+#: The pairs of simulators whose gaps results and the board report, in order (`frbench.tasks.protocol`'s grid
+#: simulators two by two).
+SIM_TO_SIM_PAIRS = tuple(itertools.combinations(GRID_SIMULATORS, 2))
+
+
+def gap_field(first: str, second: str) -> str:
+    """A ``sim_to_sim`` entry's field for the gap ``first`` − ``second``: ``gap`` for MuJoCo − PyBullet (the field
+    results had before PhysX), ``gap_<first>_<second>`` for the others."""
+    return "gap" if (first, second) == SIM_TO_SIM_PAIRS[0] else f"gap_{first}_{second}"
+
+
 def sim_to_sim(summary: list[dict]) -> list[dict]:
-    """Per (robot, terrain, level) with both backends: their mean success and the gap MuJoCo − PyBullet."""
+    """Per (robot, terrain, level) that at least two grid simulators ran: each one's mean success and the gap of
+    each pair that ran (`SIM_TO_SIM_PAIRS`, `gap_field`), first − second. Results of MuJoCo and PyBullet alone
+    keep the entries they had (robot, terrain, level, mujoco, pybullet, gap)."""
     by_key: dict[tuple, dict[str, float]] = defaultdict(dict)
     for row in summary:
         by_key[(row["robot"], row["terrain"], row["level"])][row["backend"]] = row["success_rate_mean"]
     out = []
     for (robot, terrain, level), rates in sorted(by_key.items()):
-        if "mujoco" in rates and "pybullet" in rates:
-            out.append({"robot": robot, "terrain": terrain, "level": level, "mujoco": rates["mujoco"],
-                        "pybullet": rates["pybullet"], "gap": rates["mujoco"] - rates["pybullet"]})
+        pairs = [(a, b) for a, b in SIM_TO_SIM_PAIRS if a in rates and b in rates]
+        if pairs:
+            out.append({"robot": robot, "terrain": terrain, "level": level,
+                        **{name: rates[name] for name in GRID_SIMULATORS if name in rates},
+                        **{gap_field(a, b): rates[a] - rates[b] for a, b in pairs}})
     return out
 
 

@@ -18,8 +18,9 @@ itself:
 * ``summary`` has one entry per (robot, backend, terrain, level) whose
   ``success_rate_mean`` is the mean of its cells' success rates and ``n_seeds``
   their number; ``sim_to_sim`` has one entry per (robot, terrain, level) that
-  both backends ran, with those two means and ``gap`` = mujoco - pybullet (or
-  its absolute value).
+  two or more grid simulators ran, with their means and each pair's gap
+  (``gap`` = mujoco - pybullet, or its absolute value; ``gap_mujoco_physx``,
+  ``gap_pybullet_physx``).
 
 ``frbench evaluate`` can call it on its own output before writing.
 """
@@ -34,7 +35,9 @@ from frbench.errors import FrbenchError, ResultsError
 from frbench.evaluation.grids import expected_cell_keys
 from frbench.evaluation.intervals import wilson_interval
 from frbench.schemas import SchemaViolation, validate
-from frbench.tasks.protocol import KNOWN_PROTOCOL_VERSIONS, RESULTS_SCHEMA_VERSION
+from frbench.evaluation.results import SIM_TO_SIM_PAIRS, gap_field
+from frbench.leaderboard.reuse import check_reused
+from frbench.tasks.protocol import GRID_SIMULATORS, KNOWN_PROTOCOL_VERSIONS, RESULTS_SCHEMA_VERSION
 
 #: Tolerance on rates recomputed from counts.
 RATE_TOLERANCE = 1e-9
@@ -109,6 +112,7 @@ def check_results(results: Any, *, schema_checked: bool = False) -> None:
     cells = _check_cells(results)
     _check_episodes(results, cells)
     _check_summary(results)
+    check_reused(results)
 
 
 def _check_provenance(results: dict) -> None:
@@ -148,7 +152,7 @@ def _check_cells(results: dict) -> dict[tuple, int]:
             )
         if cell["diverged"] > cell["episodes"]:
             raise ResultsError(f"cells[{index}].diverged: {cell['diverged']} exceeds {cell['episodes']} episodes")
-    named = _named_grid_keys(config)
+    named = _named_grid_keys(config, results["protocol_version"])
     if named is not None:
         for key in sorted(named - index_of.keys(), key=str)[:1]:
             raise ResultsError(f"cells: no cell for {describe(key, CELL_KEY)}, which config.grid {config['grid']} holds")
@@ -168,12 +172,13 @@ def _check_cells(results: dict) -> dict[tuple, int]:
     return index_of
 
 
-def _named_grid_keys(config: dict) -> set[tuple] | None:
-    """The cells of ``config.grid`` (None when it names no grid); an unknown grid name is a one-line error."""
+def _named_grid_keys(config: dict, version: str) -> set[tuple] | None:
+    """The cells of ``config.grid`` under protocol ``version`` (None when it names no grid); an unknown grid name is
+    a one-line error."""
     if "grid" not in config:
         return None
     try:
-        return expected_cell_keys(config)
+        return expected_cell_keys(config, version)
     except FrbenchError as exc:
         raise ResultsError(f"config.grid: {str(exc).removeprefix('--grid ')}") from None
 
@@ -272,27 +277,46 @@ def _check_summary(results: dict) -> None:
         if key not in seen:
             raise ResultsError(f"summary: no entry for {describe(key, GROUP_KEY)}")
 
-    pairs: dict[tuple, dict[str, float]] = defaultdict(dict)
+    _check_sim_to_sim(results["sim_to_sim"], means)
+
+
+def _check_sim_to_sim(entries: list[dict], means: dict[tuple, float]) -> None:
+    """One ``sim_to_sim`` entry per (robot, terrain, level) that a pair of grid simulators ran, holding the summary
+    means of the simulators that ran it and each such pair's gap (`frbench.evaluation.results.sim_to_sim`)."""
+    rates: dict[tuple, dict[str, float]] = defaultdict(dict)
     for (robot, backend, terrain, level), mean in means.items():
-        pairs[(robot, terrain, level)][backend] = mean
-    both = {key: value for key, value in pairs.items() if len(value) == 2}
+        if backend in GRID_SIMULATORS:
+            rates[(robot, terrain, level)][backend] = mean
+    ran = {key: value for key, value in rates.items() if any(a in value and b in value for a, b in SIM_TO_SIM_PAIRS)}
     seen = {}
-    for index, entry in enumerate(results["sim_to_sim"]):
+    for index, entry in enumerate(entries):
         key = tuple(entry[f] for f in PAIR_KEY)
-        if key not in both:
-            raise ResultsError(f"sim_to_sim[{index}]: no cells of both backends for {describe(key, PAIR_KEY)}")
+        if key not in ran:
+            raise ResultsError(f"sim_to_sim[{index}]: no cells of two simulators for {describe(key, PAIR_KEY)}")
         if key in seen:
             raise ResultsError(f"sim_to_sim[{index}]: duplicate entry for {describe(key, PAIR_KEY)} (also sim_to_sim[{seen[key]}])")
         seen[key] = index
-        for backend in ("mujoco", "pybullet"):
-            if abs(entry[backend] - both[key][backend]) > RATE_TOLERANCE:
+        present = ran[key]
+        for backend in GRID_SIMULATORS:
+            if (backend in entry) != (backend in present):
+                raise ResultsError(f"sim_to_sim[{index}].{backend}: " + (
+                    "missing, but the summary has it" if backend in present else f"{backend} ran no cell of it"))
+            if backend in present and abs(entry[backend] - present[backend]) > RATE_TOLERANCE:
                 raise ResultsError(
                     f"sim_to_sim[{index}].{backend}: {_fmt(entry[backend])} differs from the summary's "
-                    f"success_rate_mean, {_fmt(both[key][backend])}"
+                    f"success_rate_mean, {_fmt(present[backend])}"
                 )
-        gap = both[key]["mujoco"] - both[key]["pybullet"]
-        if min(abs(entry["gap"] - gap), abs(entry["gap"] - abs(gap))) > RATE_TOLERANCE:
-            raise ResultsError(f"sim_to_sim[{index}].gap: {_fmt(entry['gap'])} differs from mujoco - pybullet = {_fmt(gap)}")
-    for key in sorted(both, key=str):
+        for first, second in SIM_TO_SIM_PAIRS:
+            name, both = gap_field(first, second), first in present and second in present
+            if (name in entry) != both:
+                raise ResultsError(f"sim_to_sim[{index}].{name}: " + (
+                    "missing" if both else f"{first} and {second} did not both run it"))
+            if both:
+                gap = present[first] - present[second]
+                accepted = (gap, abs(gap)) if name == "gap" else (gap,)  # |mujoco - pybullet| as before PhysX
+                if min(abs(entry[name] - value) for value in accepted) > RATE_TOLERANCE:
+                    raise ResultsError(f"sim_to_sim[{index}].{name}: {_fmt(entry[name])} differs from {first} - "
+                                       f"{second} = {_fmt(gap)}")
+    for key in sorted(ran, key=str):
         if key not in seen:
-            raise ResultsError(f"sim_to_sim: no entry for {describe(key, PAIR_KEY)}, which both backends ran")
+            raise ResultsError(f"sim_to_sim: no entry for {describe(key, PAIR_KEY)}, which two simulators ran")

@@ -5,13 +5,19 @@ terrain x level x seed), so each cell weighs the same:
 
 * ``overall``: over all scored cells; ``per_family`` / ``per_backend`` /
   ``per_robot``: over the cells of that terrain family / backend / robot;
-* ``sim_to_sim_gap``: for each (robot, terrain, level) that both backends ran,
-  ``|mean over seeds (mujoco) - mean over seeds (pybullet)|``, averaged; null
-  when no (robot, terrain, level) has both backends.
+* ``sim_to_sim_gap``: for each (robot, terrain, level) and each pair of grid
+  simulators that ran it (MuJoCo and PyBullet; with PhysX, protocol 1.3, also
+  MuJoCo and PhysX, PyBullet and PhysX), ``|mean over seeds (first) - mean over
+  seeds (second)|``, averaged; null when no (robot, terrain, level) has two
+  simulators. With more than one pair, ``pairwise_gaps`` holds the same mean per
+  pair (``mujoco-pybullet``, ``mujoco-physx``, ``pybullet-physx``); records of
+  MuJoCo and PyBullet alone keep exactly the scores they had.
 
-A record whose cells cover the standard grid (``frbench.tasks.protocol``), each
-standard cell with at least ``STANDARD_EPISODES`` episodes, is on the ``main`` track and is scored on the standard grid's cells only, so main
-records are comparable; any other record is ``partial`` and scored on all its
+A record whose cells cover the standard grid of its protocol version
+(``frbench.tasks.protocol``: its simulators are the version's), each standard
+cell with at least ``STANDARD_EPISODES`` episodes, is on the ``main`` track and
+is scored on the standard grid's cells only (robots, families, levels and seeds
+of the standard grid in any grid simulator), so main records are comparable; any other record is ``partial`` and scored on all its
 cells. Ranking: overall success (higher first), then sim-to-sim gap (lower
 first, none last), then submission time, then id — only among records of one
 protocol version (`check_same_protocol`). Each score has a 95 % stratified-
@@ -32,49 +38,62 @@ import numpy as np
 
 from frbench.errors import FrbenchError
 from frbench.evaluation.intervals import bootstrap_rates, percentile_interval, sim_to_sim_gaps, sorted_cells
+from frbench.evaluation.results import SIM_TO_SIM_PAIRS
 from frbench.tasks.protocol import (
-    STANDARD_BACKENDS,
+    GRID_SIMULATORS,
+    KNOWN_PROTOCOL_VERSIONS,
+    PROTOCOL_VERSION,
     STANDARD_EPISODES,
     STANDARD_LEVELS,
     STANDARD_ROBOTS,
     STANDARD_SEEDS,
     STANDARD_TERRAINS,
+    grid_backends,
+    version_key,
 )
 
 #: (robot, backend, terrain, level) -> (sum of the cells' success rates, number of cells).
 Groups = dict[tuple[str, str, str, int], tuple[float, int]]
 
+#: The standard grid's cells in every grid simulator: the cells a main record is scored on.
 STANDARD_GRID = frozenset(
-    itertools.product(STANDARD_ROBOTS, STANDARD_BACKENDS, STANDARD_TERRAINS, STANDARD_LEVELS, STANDARD_SEEDS)
+    itertools.product(STANDARD_ROBOTS, GRID_SIMULATORS, STANDARD_TERRAINS, STANDARD_LEVELS, STANDARD_SEEDS)
 )
+#: The newest protocol version: its grids hold every grid simulator.
+NEWEST = KNOWN_PROTOCOL_VERSIONS[-1]
+
+
+@lru_cache(maxsize=8)
+def standard_grid(version: str) -> frozenset:
+    """The standard grid's cells under protocol ``version`` (its simulators, `grid_backends`)."""
+    return frozenset(itertools.product(STANDARD_ROBOTS, grid_backends(version), STANDARD_TERRAINS, STANDARD_LEVELS,
+                                       STANDARD_SEEDS))
 
 
 def cell_key(cell: Mapping) -> tuple:
     return (cell["robot"], cell["backend"], cell["terrain"], cell["level"], cell["seed"])
 
 
-@lru_cache(maxsize=1)
-def unseen_grid() -> frozenset:
-    """The unseen grid's quadruped cells (protocol 1.2, `frbench.evaluation.grids`)."""
+@lru_cache(maxsize=8)
+def unseen_grid(version: str = NEWEST) -> frozenset:
+    """The unseen grid's quadruped cells (protocol 1.2, `frbench.evaluation.grids`) under protocol ``version`` (the
+    newest by default: in every grid simulator, the cells scored as unseen)."""
     from frbench.evaluation.grids import unseen_part
 
-    return frozenset(unseen_part().keys())
+    return frozenset(unseen_part(version=version).keys())
 
 
-@lru_cache(maxsize=1)
-def unseen_humanoid_grid() -> frozenset:
-    """The unseen grid's humanoid cells (scored only for policies that drive humanoids)."""
+@lru_cache(maxsize=8)
+def unseen_humanoid_grid(version: str = NEWEST) -> frozenset:
+    """The unseen grid's humanoid cells (scored only for policies that drive humanoids) under ``version``."""
     from frbench.evaluation.grids import unseen_part
 
-    return frozenset(unseen_part(humanoids=True).keys())
+    return frozenset(unseen_part(humanoids=True, version=version).keys())
 
 
 def needs_unseen_grid(protocol_version: str | None) -> bool:
     """Whether a main-track record of this protocol version must hold the unseen grid (1.2 and later)."""
-    if protocol_version is None:
-        return False
-    major, _, minor = protocol_version.partition(".")
-    return (int(major), int(minor or 0)) >= (1, 2)
+    return protocol_version is not None and version_key(protocol_version) >= (1, 2)
 
 
 def _grid_shortfall(episodes: Mapping[tuple, int], grid: frozenset, label: str) -> str | None:
@@ -94,12 +113,14 @@ def main_track_shortfall(cells: Sequence[Mapping], protocol_version: str | None 
     ``STANDARD_EPISODES`` episodes (the count that bounds the overall score's
     95 % interval at +-2 points; ``frbench.tasks.protocol``); from protocol 1.2
     on, the unseen grid's quadruped cells likewise (a 1.2 record without them is
-    partial).
+    partial). The grids' simulators are those of ``protocol_version`` (the current
+    protocol's when None): from 1.3 on, PhysX's cells too.
     """
+    version = protocol_version or PROTOCOL_VERSION
     episodes = {cell_key(c): c["episodes"] for c in cells}
-    shortfall = _grid_shortfall(episodes, STANDARD_GRID, "standard")
+    shortfall = _grid_shortfall(episodes, standard_grid(version), "standard")
     if shortfall is None and needs_unseen_grid(protocol_version):
-        shortfall = _grid_shortfall(episodes, unseen_grid(), "unseen")
+        shortfall = _grid_shortfall(episodes, unseen_grid(version), "unseen")
     return shortfall
 
 
@@ -172,20 +193,30 @@ def aggregate(groups: Groups, *, robot: str | None = None, backend: str | None =
         per_family_level[family] = {
             str(level): _mean(v for k, v in chosen.items() if k[2] == family and k[3] == level) for level in levels
         }
-    gaps = []
+    gaps: dict[tuple[str, str], list[float]] = {}
     for robot_, terrain_, level in sorted({(k[0], k[2], k[3]) for k in chosen}, key=str):
-        means = {b: chosen[(robot_, b, terrain_, level)] for b in STANDARD_BACKENDS if (robot_, b, terrain_, level) in chosen}
-        if len(means) == 2:
-            gaps.append(abs(means["mujoco"][0] / means["mujoco"][1] - means["pybullet"][0] / means["pybullet"][1]))
+        means = {b: chosen[(robot_, b, terrain_, level)] for b in GRID_SIMULATORS if (robot_, b, terrain_, level) in chosen}
+        for first, second in SIM_TO_SIM_PAIRS:
+            if first in means and second in means:
+                gaps.setdefault((first, second), []).append(
+                    abs(means[first][0] / means[first][1] - means[second][0] / means[second][1]))
+    every = [gap for pair in gaps.values() for gap in pair]
     return {
         "overall": _mean(chosen.values()),
         "per_family": by(2),
         "per_backend": by(1),
         "per_robot": by(0),
         "per_family_level": per_family_level,
-        "sim_to_sim_gap": math.fsum(gaps) / len(gaps) if gaps else None,
+        "sim_to_sim_gap": math.fsum(every) / len(every) if every else None,
+        **({"pairwise_gaps": {pair_name(*pair): math.fsum(values) / len(values) for pair, values in gaps.items()}}
+           if len(gaps) > 1 else {}),
         "cells": sum(n for _, n in chosen.values()),
     }
+
+
+def pair_name(first: str, second: str) -> str:
+    """``mujoco-physx``: a pair of simulators in `pairwise_gaps` and `score_intervals`' ``signed_gaps``."""
+    return f"{first}-{second}"
 
 
 def _scores_of(cells: Sequence[Mapping]) -> dict:
@@ -197,6 +228,7 @@ def _scores_of(cells: Sequence[Mapping]) -> dict:
         "per_backend": full["per_backend"],
         "per_robot": full["per_robot"],
         "sim_to_sim_gap": full["sim_to_sim_gap"],
+        **({"pairwise_gaps": full["pairwise_gaps"]} if "pairwise_gaps" in full else {}),
         "cells": full["cells"],
         "episodes": sum(c["episodes"] for c in cells),
     }
@@ -256,7 +288,9 @@ def score_intervals(cells: Sequence[Mapping], *, robot: str | None = None, backe
                     terrain: str | None = None) -> dict | None:
     """95 % stratified-bootstrap intervals [low, high] of the `aggregate` scores of ``cells`` matching the filters
     (``overall``, ``per_family``, ``per_backend``, ``per_robot``) and of the signed gap MuJoCo − PyBullet
-    (``signed_gap``: [point, low, high], None without both backends); None if no cell matches.
+    (``signed_gap``: [point, low, high], None without both backends), and with more than one pair of grid
+    simulators each pair's signed gap first − second (``signed_gaps``: `pair_name` -> [point, low, high]); None if
+    no cell matches.
 
     The replicates are drawn once over all of ``cells`` (`frbench.evaluation.intervals.bootstrap_rates`,
     seeded), so a filtered score's interval comes from the same resampled cells as the unfiltered one.
@@ -279,14 +313,19 @@ def score_intervals(cells: Sequence[Mapping], *, robot: str | None = None, backe
             out[name] = list(percentile_interval(sub[:, mask].mean(axis=1), k[mask].sum(), n[mask].sum()))
         return out
 
-    gaps = sim_to_sim_gaps(chosen, sub)
+    signed = {}
+    for first, second in SIM_TO_SIM_PAIRS:
+        gaps = sim_to_sim_gaps(chosen, sub, first, second)
+        if gaps is not None:
+            point = float(sim_to_sim_gaps(chosen, _points(chosen), first, second)[0])
+            signed[pair_name(first, second)] = [point, *percentile_interval(gaps)]
     return {
         "overall": list(percentile_interval(sub.mean(axis=1), k.sum(), n.sum())),
         "per_family": by("terrain"),
         "per_backend": by("backend"),
         "per_robot": by("robot"),
-        "signed_gap": [float(sim_to_sim_gaps(chosen, _points(chosen))[0]), *percentile_interval(gaps)]
-        if gaps is not None else None,
+        "signed_gap": signed.get(pair_name(*SIM_TO_SIM_PAIRS[0])),
+        **({"signed_gaps": signed} if len(signed) > 1 else {}),
     }
 
 

@@ -40,7 +40,8 @@ CACHE_KIND = "board-summaries"
 CODE_MODULES = (
     "frbench.leaderboard.summaries", "frbench.leaderboard.records", "frbench.leaderboard.results",
     "frbench.leaderboard.scores", "frbench.leaderboard.jsonfile", "frbench.schemas", "frbench.schemas.validator",
-    "frbench.evaluation.intervals", "frbench.evaluation.grids", "frbench.tasks.protocol",
+    "frbench.evaluation.intervals", "frbench.evaluation.grids", "frbench.evaluation.results", "frbench.tasks.protocol",
+    "frbench.leaderboard.reuse",
 )
 #: Filter name -> the key prefix in `interval_views` (the page's names).
 VIEW_PREFIX = {"robot": "robot", "backend": "backend", "terrain": "family"}

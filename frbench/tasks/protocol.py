@@ -11,8 +11,12 @@ from frbench.control import CONTROL_DT  # noqa: F401  (the control period [s] is
 
 #: The protocol this code implements.
 PROTOCOL_VERSION = "1.2"
-#: Every protocol version whose results the leaderboard accepts.
-KNOWN_PROTOCOL_VERSIONS = ("1.0", "1.1", "1.2")
+#: Every protocol version whose results the leaderboard accepts. 1.3 (the grids in three simulators, PhysX added;
+#: docs/protocol.md, "Protocol 1.3") is defined and checked here; it becomes `PROTOCOL_VERSION`, in one change with
+#: the re-scored records, when every main-board record has its PhysX cells (tools/rescore_physx.py).
+KNOWN_PROTOCOL_VERSIONS = ("1.0", "1.1", "1.2", "1.3")
+#: The first protocol whose grids hold PhysX cells.
+PHYSX_PROTOCOL = "1.3"
 #: The version in the starts' random key (`frbench.tasks.initial_states.episode_rng`): 1.2 changed no start, so it
 #: draws 1.1's (a policy that does not use torch scores the standard grid as under 1.1, episode for episode).
 STARTS_KEY_VERSION = "1.1"
@@ -24,17 +28,37 @@ EPISODE_SECONDS = 5.0
 
 #: The standard grid a leaderboard record must cover to be ranked.
 STANDARD_ROBOTS = ("go2", "go1", "aliengo", "spot_like", "lite3_like")
-STANDARD_BACKENDS = ("mujoco", "pybullet")
+#: The simulators of the standard and unseen grids, in the order results list them: MuJoCo and PyBullet, and PhysX
+#: from protocol 1.3 on (`grid_backends`).
+GRID_SIMULATORS = ("mujoco", "pybullet", "physx")
 STANDARD_TERRAINS = ("flat", "rough", "slopes", "stairs", "stones", "gaps", "beams")
 STANDARD_LEVELS = (1, 5, 10)
 STANDARD_SEEDS = (0, 1, 2, 3)
-#: Episodes per cell of the standard grid: 840 cells x 3 = 2520 episodes, enough for a 95 % interval of at most
+
+
+def version_key(version: str) -> tuple[int, int]:
+    """``"1.2"`` -> (1, 2): protocol versions in order."""
+    major, _, minor = version.partition(".")
+    return int(major), int(minor or 0)
+
+
+def grid_backends(version: str = PROTOCOL_VERSION) -> tuple[str, ...]:
+    """The simulators of the standard and unseen grids under protocol ``version``: MuJoCo and PyBullet, and PhysX
+    from `PHYSX_PROTOCOL` on."""
+    return GRID_SIMULATORS if version_key(version) >= version_key(PHYSX_PROTOCOL) else GRID_SIMULATORS[:2]
+
+
+#: The current protocol's grid simulators.
+STANDARD_BACKENDS = grid_backends()
+#: Episodes per cell of the standard grid: 840 cells x 3 = 2520 episodes in two simulators (1260 cells in three),
+#: enough for a 95 % interval of at most
 #: +-2 points on the overall score even if every cell were at 50 % (1.96^2 x 0.25 / 0.02^2 = 2401 episodes).
 STANDARD_EPISODES = 3
 
-#: Protocol 1.2's unseen grid (docs/protocol.md, `frbench.robots.unseen`): real quadrupeds no policy trains on x both
-#: backends x four families x levels 1 and 5 x seeds 0-3 x 3 episodes = 576 cells, 1728 episodes: a 95 % interval of
-#: at most +-2.4 points on the overall unseen score even at 50 % in every cell (1.96^2 x 0.25 / 1728 = 0.0236^2).
+#: Protocol 1.2's unseen grid (docs/protocol.md, `frbench.robots.unseen`): real quadrupeds no policy trains on x the
+#: grid's simulators x four families x levels 1 and 5 x seeds 0-3 x 3 episodes = 576 cells, 1728 episodes in two
+#: simulators (864 cells, 2592 episodes in three from 1.3 on): a 95 % interval of at most +-2.4 points on the
+#: overall unseen score even at 50 % in every cell (1.96^2 x 0.25 / 1728 = 0.0236^2).
 UNSEEN_TERRAINS = ("flat", "rough", "slopes", "stairs")
 UNSEEN_LEVELS = (1, 5)
 UNSEEN_SEEDS = STANDARD_SEEDS
