@@ -42,6 +42,7 @@ from frbench.leaderboard.records import (
 )
 from frbench.leaderboard.markdown import render_markdown
 from frbench.leaderboard.render import render_html
+from frbench.leaderboard.reuse import check_board_reuse
 from frbench.leaderboard.summaries import load_summaries, remember
 from frbench.leaderboard.results import check_results
 from frbench.policies.references import split_reference
@@ -209,6 +210,10 @@ def check(root: Path) -> CheckReport:
     for record in report.records:
         if "policy_file" in record:
             report.problems += [f"record {record['id'][:12]}: {p}" for p in stored_problems(root, record["policy_file"])]
+    try:  # a record that reuses another's episodes holds that record's episodes, when both are here
+        check_board_reuse(report.records)
+    except ResultsError as exc:
+        report.problems.append(str(exc))
     for stray in stray_files(root, report.records):
         report.problems.append(f"{stray}: no record attaches this file (a leftover of a failed submission?)")
     if report.problems:
