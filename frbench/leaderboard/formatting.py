@@ -8,7 +8,31 @@ from typing import Iterable, Mapping, Sequence
 
 from frbench.leaderboard.scores import needs_unseen_grid
 
-BACKEND_LABELS = {"mujoco": "MuJoCo", "pybullet": "PyBullet"}
+BACKEND_LABELS = {"mujoco": "MuJoCo", "pybullet": "PyBullet", "physx": "PhysX"}
+#: The first pair of grid simulators (`frbench.evaluation.results.SIM_TO_SIM_PAIRS`): its gap is ``signed_gap``.
+FIRST_PAIR = "mujoco-pybullet"
+
+
+def pair_label(pair: str) -> str:
+    """``MuJoCo − PhysX`` for the pair ``mujoco-physx`` (`frbench.leaderboard.scores.pair_name`)."""
+    first, second = pair.split("-")
+    return f"{BACKEND_LABELS.get(first, first)} − {BACKEND_LABELS.get(second, second)}"
+
+
+def signed_gap_of(intervals: Mapping, pair: str) -> Sequence[float] | None:
+    """The signed gap [point, low, high] of one pair of simulators (``mujoco-physx``) in a record's intervals
+    (`frbench.leaderboard.scores.score_intervals`): ``signed_gaps[pair]``, or ``signed_gap`` for MuJoCo −
+    PyBullet in a record of those two alone; None when the pair did not both run."""
+    gaps = intervals.get("signed_gaps")
+    if gaps is not None:
+        return gaps.get(pair)
+    return intervals.get("signed_gap") if pair == FIRST_PAIR else None
+
+
+def gap_headers(pairs: Sequence[str]) -> list[str]:
+    """The gap columns' headers: ``Gap`` when the board has the one pair MuJoCo − PyBullet, else ``Gap`` and the
+    pair per column (``Gap MuJoCo − PhysX``)."""
+    return ["Gap"] if list(pairs) == [FIRST_PAIR] else [f"Gap {pair_label(p)}" for p in pairs]
 
 
 def processor_bound(record: Mapping) -> bool:

@@ -12,10 +12,12 @@ from frbench.leaderboard.formatting import (
     fmt_generalisation,
     fmt_interval,
     fmt_verified,
+    gap_headers,
     how_reproduced,
     md_escape,
     md_row,
     processor_bound,
+    signed_gap_of,
 )
 from frbench.leaderboard.policy_files import MAX_POLICY_BYTES
 from frbench.leaderboard.records import record_file_name
@@ -28,7 +30,8 @@ def _unseen_text() -> str:
     from frbench.evaluation.grids import unseen_part
 
     part = unseen_part()
-    return (f"{len(part.robots)} real quadrupeds no policy trains on ({', '.join(part.robots)}) x both backends x "
+    return (f"{len(part.robots)} real quadrupeds no policy trains on ({', '.join(part.robots)}) x "
+            f"{len(part.backends)} backends ({', '.join(part.backends)}) x "
             f"{', '.join(part.terrains)} x levels {'/'.join(map(str, part.levels))} x seeds "
             f"{'/'.join(map(str, part.seeds))}, {part.episodes} episodes per cell")
 
@@ -54,7 +57,7 @@ def render_markdown(records: Sequence[Mapping]) -> str:
     """``leaderboard/README.md``."""
     data = board(records)
     shown = axes(records)
-    families, backends = shown["families"], shown["backends"]
+    families, backends, pairs = shown["families"], shown["backends"], shown["pairs"]
     lines = [
         "# frbench leaderboard",
         "",
@@ -85,7 +88,8 @@ def render_markdown(records: Sequence[Mapping]) -> str:
         "(one cell = robot x backend x terrain x level x seed), per terrain family and per backend. Beside each",
         "score, in parentheses, its 95 % interval from a stratified bootstrap over cells and episodes (rliable's",
         "procedure, `frbench/evaluation/intervals.py`). *Gap* is the signed sim-to-sim gap MuJoCo - PyBullet",
-        "(mean over robot x terrain x level) with its interval. Records of different protocol versions are never",
+        "(mean over robot x terrain x level) with its interval; with PhysX on the board (protocol 1.3) one *Gap*",
+        "column per pair of simulators, first - second. Records of different protocol versions are never",
         "ranked together: only the current version is ranked; earlier versions are archived below.",
         "",
         f"## Main board (protocol {PROTOCOL_VERSION})",
@@ -98,7 +102,7 @@ def render_markdown(records: Sequence[Mapping]) -> str:
     ]
     header = ["Name", "Policy", "Submitter", "Overall"] + [md_escape(f) for f in families] \
         + [BACKEND_LABELS.get(b, md_escape(b)) for b in backends] \
-        + ["Gap", "Matched std", "Unseen", "Matched − unseen", "Humanoids", "Policy file", "Verified", "Record"]
+        + gap_headers(pairs) + ["Matched std", "Unseen", "Matched − unseen", "Humanoids", "Policy file", "Verified", "Record"]
 
     def table(rows: list[dict], ranked: bool, protocol: bool = False) -> list[str]:
         if not rows:
@@ -120,7 +124,8 @@ def render_markdown(records: Sequence[Mapping]) -> str:
             values += [fmt_interval(s["per_backend"].get(b), iv["per_backend"].get(b)) for b in backends]
             file = (f"[{row['policy_file'][9:21]}]({row['policy_file']})" if row["policy_file"].startswith("policies/")
                     else md_escape(row["policy_file"])) if row["policy_file"] else "-"
-            values += [fmt_gap(iv["signed_gap"]), fmt_generalisation(row, "matched"), fmt_generalisation(row, "unseen"),
+            values += [fmt_gap(signed_gap_of(iv, p)) for p in pairs]
+            values += [fmt_generalisation(row, "matched"), fmt_generalisation(row, "unseen"),
                        fmt_generalisation(row, "gap"),
                        fmt_generalisation(row, "humanoids"), file, fmt_verified(row["verified"]),
                        f"[{row['id'][:12]}](records/{record_file_name(row['id'])})"]

@@ -37,7 +37,7 @@ cells and episodes; shown with no filter or one filter). Click a row for its pro
 <main>
 <form id="filters" aria-label="Filters">
 <label>Robot <select id="filter-robot" name="robot"><option value="">all robots</option></select></label>
-<label>Backend <select id="filter-backend" name="backend"><option value="">both backends</option></select></label>
+<label>Backend <select id="filter-backend" name="backend"><option value="">every backend</option></select></label>
 <label>Family <select id="filter-family" name="family"><option value="">all families</option></select></label>
 <button type="button" id="filter-reset">Reset</button>
 </form>
@@ -83,7 +83,7 @@ PAGE_SCRIPT = r"""
   "use strict";
   var DATA = JSON.parse(document.getElementById("leaderboard-data").textContent);
   var COLORS = ["#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf", "#7f7f7f", "#bcbd22"];
-  var LABELS = {mujoco: "MuJoCo", pybullet: "PyBullet"};
+  var LABELS = DATA.labels;
   var SVGNS = "http://www.w3.org/2000/svg";
   var state = {robot: "", backend: "", family: "", sort: "rank", dir: "asc", record: ""};
 
@@ -198,9 +198,18 @@ PAGE_SCRIPT = r"""
                  get: function (x) { var v = x.s.backend[b]; return v === undefined ? null : v; },
                  iv: function (x) { return x.iv && x.iv.per_backend[b]; }});
     });
-    cols.push({key: "gap", label: "Gap", title: "Signed sim-to-sim gap MuJoCo \u2212 PyBullet with its 95 % interval", num: true, dir: "asc",
-               get: function (x) { return x.iv && x.iv.signed_gap ? x.iv.signed_gap[0] : null; },
-               show: function (x) { var g = x.iv && x.iv.signed_gap; return g ? signed(g[0]) + " (" + signed(g[1]) + ".." + signed(g[2]) + ")" : "\u2013"; }});
+    DATA.pairs.forEach(function (p, i) {
+      var names = p.split("-"), label = (LABELS[names[0]] || names[0]) + " \u2212 " + (LABELS[names[1]] || names[1]);
+      var gapOf = function (x) {  // signed_gaps per pair with PhysX on the board, signed_gap for MuJoCo - PyBullet alone
+        if (!x.iv) { return null; }
+        if (x.iv.signed_gaps) { return x.iv.signed_gaps[p] || null; }
+        return p === "mujoco-pybullet" ? x.iv.signed_gap : null;
+      };
+      cols.push({key: i ? "gap:" + p : "gap", label: DATA.pairs.length > 1 ? "Gap " + label : "Gap",
+                 title: "Signed sim-to-sim gap " + label + " with its 95 % interval", num: true, dir: "asc",
+                 get: function (x) { var g = gapOf(x); return g ? g[0] : null; },
+                 show: function (x) { var g = gapOf(x); return g ? signed(g[0]) + " (" + signed(g[1]) + ".." + signed(g[2]) + ")" : "\u2013"; }});
+    });
     cols.push({key: "unseen", label: "Unseen", title: "Mean success on the unseen grid (real quadrupeds no policy trains on; protocol 1.2) with its 95 % interval; sort by it for the ranking by unseen success",
                num: true, score: true, dir: "desc",
                get: function (x) { var g = x.r.generalisation; return g ? g.unseen[0] : null; },

@@ -16,7 +16,16 @@ import hashlib
 import json
 from typing import Iterable, Mapping, Sequence
 
-from frbench.leaderboard.formatting import fmt_gap, fmt_generalisation, fmt_interval, fmt_verified, processor_bound
+from frbench.evaluation.results import SIM_TO_SIM_PAIRS
+from frbench.leaderboard.formatting import (
+    BACKEND_LABELS,
+    fmt_gap,
+    fmt_generalisation,
+    fmt_interval,
+    fmt_verified,
+    processor_bound,
+    signed_gap_of,
+)
 from frbench.leaderboard.page import PAGE_SCRIPT, PAGE_STYLE, PAGE_TEMPLATE
 from frbench.leaderboard.policy_files import policy_file_label
 from frbench.leaderboard.scores import (
@@ -24,6 +33,7 @@ from frbench.leaderboard.scores import (
     check_same_protocol,
     groups_of,
     overlaps,
+    pair_name,
     rank_key,
     scored_cells,
 )
@@ -72,11 +82,14 @@ def standard_text() -> str:
 
 
 def axes(records: Sequence[Mapping]) -> dict[str, list]:
-    """The robots, backends, families and levels to show: the standard ones, then any others, sorted."""
+    """The robots, backends, families and levels to show: the standard ones, then any others, sorted; and the
+    pairs of grid simulators whose gaps to show (``mujoco-physx``; those of the shown backends)."""
     cells = [c for r in records for c in r["results"]["cells"]]
+    backends = _ordered(STANDARD_BACKENDS, (c["backend"] for c in cells))
     return {
         "robots": _ordered(STANDARD_ROBOTS, (c["robot"] for c in cells)),
-        "backends": _ordered(STANDARD_BACKENDS, (c["backend"] for c in cells)),
+        "backends": backends,
+        "pairs": [pair_name(a, b) for a, b in SIM_TO_SIM_PAIRS if a in backends and b in backends],
         "families": _ordered(STANDARD_TERRAINS, (c["terrain"] for c in cells)),
         "levels": sorted(set(STANDARD_LEVELS) | {c["level"] for c in cells}),
     }
@@ -151,7 +164,8 @@ def render_json(records: Sequence[Mapping], **filters) -> str:
     return json.dumps(board(records, **filters), indent=2, sort_keys=True, ensure_ascii=False, allow_nan=False) + "\n"
 
 
-def _columns(families: Sequence[str], backends: Sequence[str], ranked: bool) -> list[tuple[str, callable]]:
+def _columns(families: Sequence[str], backends: Sequence[str], pairs: Sequence[str],
+             ranked: bool) -> list[tuple[str, callable]]:
     def iv(row: dict, key: str, name: str | None = None):
         value = row["scores"][key] if name is None else row["scores"][key].get(name)
         interval = row["intervals"][key] if name is None else row["intervals"][key].get(name)
@@ -167,7 +181,9 @@ def _columns(families: Sequence[str], backends: Sequence[str], ranked: bool) -> 
     columns += [(f, lambda r, f=f: iv(r, "per_family", f)) for f in families]
     columns += [(b, lambda r, b=b: iv(r, "per_backend", b)) for b in backends]
     columns += [
-        ("gap mj-pb", lambda r: fmt_gap(r["intervals"]["signed_gap"])),
+    ]
+    columns += [(f"gap {p}", lambda r, p=p: fmt_gap(signed_gap_of(r["intervals"], p))) for p in pairs]
+    columns += [
         ("unseen", lambda r: fmt_generalisation(r, "unseen")),
         ("matched-unseen", lambda r: fmt_generalisation(r, "gap")),
         ("cells", lambda r: str(r["scores"]["cells"])),
@@ -199,7 +215,7 @@ def render_table(records: Sequence[Mapping], **filters) -> str:
         out.append("filters: " + " ".join(f"{k}={v}" for k, v in data["filters"].items()))
     for section in ("main", "partial", "archived"):
         rows = data[section]
-        columns = _columns(families, shown["backends"], section != "partial")
+        columns = _columns(families, shown["backends"], shown["pairs"], section != "partial")
         out.append(f"{SECTION_TITLES[section].format(version=PROTOCOL_VERSION)} ({len(rows)} record{'s' if len(rows) != 1 else ''})")
         if not rows:
             out.append("  (none)")
@@ -238,6 +254,7 @@ def page_data(records: Sequence[Mapping]) -> dict:
     return {
         "page_version": 2,
         **axes(records),
+        "labels": BACKEND_LABELS,
         "standard": standard_text(),
         "protocol": PROTOCOL_VERSION,
         "protocols": list(KNOWN_PROTOCOL_VERSIONS),
