@@ -10,11 +10,16 @@ at a time, one cell after the other in this process (the machine is shared), eac
 
 A killed job resumes where it stopped: a chunk whose file exists is not run again. Records run one after the
 other in board order (``scripted`` and ``frnet-30m`` first), each with all its grids, so that records finish one
-by one. When a record's chunks are complete, ``--assemble`` writes its protocol 1.3 results (`Physx13Job`),
-``--submit`` submits them::
+by one. When a record's chunks are complete its protocol 1.3 results are written to
+``OUT/<record name>/results.json`` (`PhysxJob.assemble_physx`): the record's MuJoCo and PyBullet episodes unchanged,
+its new PhysX episodes beside them, and the ``reused`` field that names the source record and the sha256 of the
+episodes taken from it (`frbench.leaderboard.reuse`), validated like a submission. ``--submit`` submits the
+finished ones; the board ranks them once 1.3 is the current protocol, and the 1.2 records go to its archive::
 
     nice -n 10 nohup .venv/bin/python tools/rescore_physx.py >> runs/rescore-1.3/nohup.out 2>&1 &
     .venv/bin/python tools/rescore_physx.py --status
+    .venv/bin/python tools/rescore_physx.py --assemble     # write results.json of every finished record
+    .venv/bin/python tools/rescore_physx.py --submit       # submit them
 """
 
 from __future__ import annotations
@@ -35,6 +40,7 @@ from rescore import (  # noqa: E402
     log,
     run_logged_chunk,
     single_threaded,
+    submit_finished,
 )
 
 DEFAULT_OUT = ROOT / "runs" / "rescore-1.3"
@@ -42,6 +48,13 @@ DEFAULT_OUT = ROOT / "runs" / "rescore-1.3"
 TARGET_PROTOCOL = "1.3"
 SIMULATOR = "physx"
 GRIDS = ("standard", "unseen")
+#: The simulators whose episodes a 1.3 record takes unchanged from its 1.2 record.
+REUSED = ("mujoco", "pybullet")
+
+
+def description_suffix(record: str) -> str:
+    """What the 1.3 record's description says of its origin."""
+    return f"; protocol 1.3: record {record[:12]}'s MuJoCo and PyBullet episodes with its PhysX cells"
 
 
 def main_board(board: Path) -> list[dict]:
@@ -76,6 +89,29 @@ class PhysxJob(Job):
         total = sum(len(self.chunks[grid]) for grid in GRIDS)
         return total - sum(len(self.pending(grid)) for grid in GRIDS), total
 
+    def assemble_physx(self) -> Path | None:
+        """Write ``results.json`` (protocol 1.3) once every chunk is there; None while some are missing. Its
+        MuJoCo and PyBullet episodes are the source record's, checked by their checksum (``reused``)."""
+        from frbench.evaluation.grid import EvaluationRequest, build_results, validate
+        from frbench.io import atomic_write_text
+        from frbench.leaderboard.results import check_results
+        from frbench.leaderboard.reuse import EPISODE_ORDER, check_against_source, reused_episodes, reused_field
+
+        target = self.folder / "results.json"
+        if target.is_file() or any(self.pending(grid) for grid in GRIDS):
+            return target if target.is_file() else None
+        request = EvaluationRequest(policy=self.reference, grid=list(GRIDS), jobs=1,
+                                    protocol_version=TARGET_PROTOCOL)
+        policy = validate(request)
+        episodes = reused_episodes(self.record, REUSED) + episodes_of(self)
+        episodes.sort(key=lambda e: tuple(e[k] for k in EPISODE_ORDER))
+        results = build_results(request, policy, episodes, code=self.meta()["frbench"])
+        results["reused"] = reused_field(self.record, REUSED)
+        check_results(results)
+        check_against_source(results, self.record)
+        atomic_write_text(target, json.dumps(results, indent=1) + "\n")
+        return target
+
 
 def _in_physx(cell):
     import dataclasses
@@ -95,15 +131,24 @@ def episodes_of(job: PhysxJob) -> list[dict]:
 def main(argv: list[str] | None = None) -> int:
     parser = job_arguments(__doc__, DEFAULT_OUT, "the whole main board")
     parser.add_argument("--max-chunks", type=int, default=0, help=MAX_CHUNKS_HELP)
+    parser.add_argument("--assemble", action="store_true", help="write results.json of every finished record and exit")
     args = parser.parse_args(argv)
     single_threaded(args.out)
+    if args.submit:
+        return submit_finished(args.out, args.board, description_suffix)
     only = {n for n in args.only.split(",") if n}
     jobs = [PhysxJob(r, args.board, args.out) for r in main_board(args.board)
             if not only or r["submission"]["name"] in only]
     if args.status:
         for job in jobs:
             done, total = job.done()
-            print(f"{job.name:<28} {done}/{total} chunks")
+            print(f"{job.name:<28} {done}/{total} chunks"
+                  + (", results.json" if (job.folder / "results.json").is_file() else ""))
+        return 0
+    if args.assemble:
+        for job in jobs:
+            if job.assemble_physx() is not None:
+                print(f"{job.name}: {job.folder / 'results.json'}")
         return 0
     log(args.out, f"start: {len(jobs)} records, PhysX cells for protocol {TARGET_PROTOCOL}, pid {os.getpid()}")
     ran = 0
@@ -117,6 +162,8 @@ def main(argv: list[str] | None = None) -> int:
                 run_logged_chunk(job, grid, chunk)
                 ran += 1
         log(args.out, f"{job.name}: every PhysX chunk written")
+        if job.assemble_physx() is not None:
+            log(args.out, f"{job.name}: results.json complete")
     log(args.out, "finished: every chunk is done")
     return 0
 
