@@ -23,3 +23,11 @@ def test_the_robot_frame_record_of_a_policy_file_with_a_canonical_record_is_supe
     assert replaced == {"a" * 64: "b" * 64}
     assert [section_of(r, replaced) for r in (old, new, other, builtin, earlier)] == [
         "archived", "main", "main", "main", "archived"]
+
+
+def test_an_earlier_versions_robot_frame_record_is_superseded_within_its_version_only():
+    old, new = _record("a" * 64, "1" * 64, version="1.1"), _record("b" * 64, "1" * 64, "canonical", version="1.1")
+    current = _record("c" * 64, "1" * 64)  # the current version's robot-frame record: no canonical one of its version
+    assert superseded([old, new, current]) == {"a" * 64: "b" * 64}
+    assert [section_of(r, superseded([old, new, current])) for r in (old, new, current)] == [
+        "archived", "archived", "main"]

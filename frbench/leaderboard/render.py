@@ -134,7 +134,8 @@ def board(records: Sequence[Mapping], *, robot: str | None = None, backend: str 
     sections["partial"].sort(key=lambda row: rank_key(row["scores"], row["submitted"], row["id"]))
     archived = sections["archived"]
     for version in sorted({row["protocol_version"] for row in archived}):  # ranked within their own version only
-        _rank([row for row in archived if row["protocol_version"] == version and row["track"] == "main"])
+        _rank([row for row in archived if row["protocol_version"] == version and row["track"] == "main"
+               and "superseded_by" not in row])
     archived.sort(key=lambda row: (row["protocol_version"], row["track"] != "main",
                                    rank_key(row["scores"], row["submitted"], row["id"])))
     filters = {k: v for k, v in (("robot", robot), ("backend", backend), ("terrain", terrain)) if v is not None}

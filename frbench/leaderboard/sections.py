@@ -10,22 +10,22 @@ from frbench.tasks.protocol import PROTOCOL_VERSION
 
 
 def superseded(records: Sequence[Mapping]) -> dict[str, str]:
-    """Record id → the id of the record that supersedes it: a current-protocol record of a learned policy run in
-    the robot's own joint frame, where a current-protocol record of the same policy file (its sha256) ran it in
-    the canonical frame (`frbench.robots.joint_frame`; docs/protocol.md, "The joint frame"). Each id keeps
-    meaning its own results; the superseded one moves to the archived section."""
+    """Record id → the id of the record that supersedes it: a record of a learned policy run in the robot's own
+    joint frame, where a record of the same protocol version and the same policy file (its sha256) ran it in the
+    canonical frame (`frbench.robots.joint_frame`; docs/protocol.md, "The joint frame"). Each id keeps meaning
+    its own results; the superseded one moves to the archived section (an earlier version's, from its ranking
+    there)."""
     canonical = {}
     for record in records:
         policy = record["results"]["policy"]
-        if (record["results"]["protocol_version"] == PROTOCOL_VERSION and policy.get("sha256")
-                and policy.get("joint_frame") == "canonical"):
-            canonical.setdefault(policy["sha256"], record["id"])
+        if policy.get("sha256") and policy.get("joint_frame") == "canonical":
+            canonical.setdefault((record["results"]["protocol_version"], policy["sha256"]), record["id"])
     out = {}
     for record in records:
         policy = record["results"]["policy"]
-        if (record["results"]["protocol_version"] == PROTOCOL_VERSION and policy.get("joint_frame", "robot") == "robot"
-                and policy.get("sha256") in canonical):
-            out[record["id"]] = canonical[policy["sha256"]]
+        key = (record["results"]["protocol_version"], policy.get("sha256"))
+        if policy.get("joint_frame", "robot") == "robot" and key in canonical:
+            out[record["id"]] = canonical[key]
     return out
 
 
