@@ -121,7 +121,7 @@ def test_results_name_their_grid_and_a_1_2_record_needs_the_unseen_grid_to_be_ma
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--grid", "bogus"], "--grid 'bogus': unknown grid; known: standard, unseen"),
+    (["--grid", "bogus"], "--grid 'bogus': unknown grid; known: standard, unseen, humanoid"),
     (["--grid", "unseen", "--robots", "go2"], "--grid unseen fixes the robots, backends, terrains, levels, seeds and "
                                               "episodes: drop --robots"),
 ])

@@ -35,7 +35,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "Stable-Baselines3 or Python policy (default: its sidecar <file>.json, else frbench's layout)")
     p.add_argument("--grid", default=None, help="a named grid of the protocol instead of the axes below: standard "
                    "(the five training-distribution quadrupeds, 840 cells), unseen (real quadrupeds no policy trains on, "
-                   "576 cells, + the humanoid set for a humanoid policy) or standard,unseen (docs/protocol.md)")
+                   "576 cells, + the humanoid set for a humanoid policy), standard,unseen, or humanoid (protocol 1.3 on: the G1, 144 "
+                   "cells, + the humanoid set; docs/protocol.md)")
     p.add_argument("--robots", type=_list, default=None, help="comma-separated robot names or URDF paths (default go2)")
     p.add_argument("--backends", type=_list, default=None, help="mujoco,pybullet (mujoco-warp with the gpu extra, physx "
                    "with the physx extra)")

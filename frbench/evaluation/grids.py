@@ -1,4 +1,4 @@
-"""The protocol's named evaluation grids: ``standard`` and ``unseen`` (protocol 1.2, docs/protocol.md).
+"""The protocol's named evaluation grids: ``standard``, ``unseen`` (protocol 1.2) and ``humanoid`` (1.3; docs/protocol.md).
 
 A grid is one or more *parts*, each a product robots x backends x terrains x
 levels x seeds with a fixed episode count; its simulators are those of the
@@ -13,9 +13,13 @@ by default):
   flat, rough, slopes, stairs x levels 1, 5 x seeds 0-3 x 3 episodes (576
   cells in two simulators, 864 in three), plus the same product over the unseen
   humanoids for a policy that drives humanoids. A policy that does not gets no
-  humanoid cells: its humanoid score is "n/a" (`not_scored`), never 0.
+  humanoid cells: its humanoid score is "n/a" (`not_scored`), never 0;
+* ``humanoid`` (from protocol 1.3 on, `frbench.tasks.protocol.HUMANOID_PROTOCOL`):
+  the G1 x the simulators x flat, rough, slopes, stairs x levels 1, 5, 10 x
+  seeds 0-3 x 3 episodes (144 cells), plus the unseen grid's humanoid set as
+  above (scored for a policy that drives those robots, else "n/a").
 
-``frbench evaluate --grid standard,unseen`` runs the union of the parts; the
+``frbench evaluate --grid standard,unseen`` (or ``--grid humanoid``) runs the union of the parts; the
 results' ``config.grid`` names the grids, ``config.not_scored`` the robots a
 grid has that the policy cannot drive, and `expected_cell_keys` is the set of
 cells such results must hold (`frbench.leaderboard.results` checks it).
@@ -63,26 +67,40 @@ def unseen_part(humanoids: bool = False, version: str = protocol.PROTOCOL_VERSIO
                     p.UNSEEN_EPISODES)
 
 
+def humanoid_part(version: str = protocol.PROTOCOL_VERSION) -> GridPart:
+    """The humanoid grid's G1 part (`frbench.tasks.protocol` HUMANOID_*) under protocol ``version``."""
+    p = protocol
+    return GridPart(p.HUMANOID_ROBOTS, p.grid_backends(version), p.HUMANOID_TERRAINS, p.HUMANOID_LEVELS,
+                    p.HUMANOID_SEEDS, p.HUMANOID_EPISODES)
+
+
 def grid_parts(name: str, version: str = protocol.PROTOCOL_VERSION) -> tuple[GridPart, ...]:
-    """The parts of a named grid under protocol ``version`` (the unseen grid's humanoid set is its second part)."""
+    """The parts of a named grid under protocol ``version`` (the unseen grid's humanoid set is the second part of
+    ``unseen`` and of ``humanoid``); ``humanoid`` under a protocol before 1.3 is a one-line error."""
     if name == "standard":
         return (standard_part(version),)
     if name == "unseen":
         return (unseen_part(version=version), unseen_part(humanoids=True, version=version))
+    if name == "humanoid":
+        if not protocol.has_humanoid_grid(version):
+            raise FrbenchError(f"--grid humanoid: the humanoid grid is defined from protocol "
+                               f"{protocol.HUMANOID_PROTOCOL} on, not under protocol {version}")
+        return (humanoid_part(version), unseen_part(humanoids=True, version=version))
     raise FrbenchError(f"--grid {name!r}: unknown grid; known: {', '.join(GRID_NAMES)}")
 
 
 #: The named grids, in the order results list them.
-GRID_NAMES = ("standard", "unseen")
+GRID_NAMES = ("standard", "unseen", "humanoid")
 
 
-def parse_grids(text: str) -> list[str]:
-    """``standard``, ``unseen`` or ``standard,unseen`` -> the names in canonical order (one-line error otherwise)."""
+def parse_grids(text: str, version: str = protocol.PROTOCOL_VERSION) -> list[str]:
+    """Comma-separated grid names (``standard,unseen``, ``humanoid``) -> the names in canonical order; a one-line
+    error for an empty list, an unknown name or a grid protocol ``version`` does not define."""
     names = [n.strip() for n in text.split(",") if n.strip()]
     if not names:
-        raise FrbenchError("--grid is empty: expected standard, unseen or standard,unseen")
+        raise FrbenchError(f"--grid is empty: expected one or more of {', '.join(GRID_NAMES)}, comma-separated")
     for name in names:
-        grid_parts(name)
+        grid_parts(name, version)
     return [n for n in GRID_NAMES if n in names]
 
 
@@ -142,9 +160,12 @@ def expected_cell_keys(config: Mapping, version: str = protocol.PROTOCOL_VERSION
 
 
 def grid_of_robot(robot: str) -> str | None:
-    """``standard``, ``unseen`` or ``unseen-humanoid`` for a robot of a named grid, else None."""
+    """``standard``, ``unseen``, ``humanoid`` (the G1) or ``unseen-humanoid`` for a robot of a named grid, else
+    None."""
     if robot in protocol.STANDARD_ROBOTS:
         return "standard"
+    if robot in protocol.HUMANOID_ROBOTS:
+        return "humanoid"
     if robot in protocol.unseen_quadrupeds():
         return "unseen"
     if robot in protocol.unseen_humanoids():

@@ -4,7 +4,9 @@ A record (``record_schema_version`` 1, schema ``record-v1.schema.json``) is::
 
     {"record_schema_version": 1, "id": <sha256 of the results' canonical JSON>,
      "submission": {name, policy, description, submitter, link, submitted},
-     "track": "main" | "partial", "scores": <recomputed>, "results": <the results, verbatim>}
+     "track": "main" | "humanoid" | "partial", "scores": <recomputed>, "results": <the results, verbatim>}
+
+(the track: `frbench.leaderboard.scores.track_of`; ``humanoid`` from protocol 1.3 on.)
 
 Records keep the results verbatim, per-episode records included, so anyone can
 re-check them and recompute the id. The id depends on the results only: the
@@ -53,7 +55,7 @@ from frbench.leaderboard.jsonfile import (
 )
 from frbench.leaderboard.paths import RECORDS
 from frbench.leaderboard.results import check_results
-from frbench.leaderboard.scores import record_scores, track_of
+from frbench.leaderboard.scores import record_scores, results_track
 from frbench.schemas import validate
 
 RECORD_SCHEMA_VERSION = 1
@@ -142,7 +144,7 @@ def submission_fields(
 
 def build_record(results: dict, submission: dict) -> dict:
     """A complete record for checked ``results`` (see :func:`~frbench.leaderboard.results.check_results`)."""
-    track = track_of(results["cells"], results["protocol_version"])
+    track = results_track(results)
     record = {
         "record_schema_version": RECORD_SCHEMA_VERSION,
         "id": record_id(results),
@@ -228,7 +230,7 @@ def check_record(record: Any, *, file_name: str | None = None) -> None:
     if attached is not None and results["policy"]["sha256"] not in (None, attached["sha256"]):
         raise ResultsError(f"policy_file.sha256: {attached['sha256']} is not the checkpoint the results were evaluated "
                            f"with (results.policy.sha256 {results['policy']['sha256']})")
-    track = track_of(results["cells"], results["protocol_version"])
+    track = results_track(results)
     if record["track"] != track:
         raise ResultsError(f"track: {record['track']!r} but its cells put it on the {track!r} track")
     fresh = record_scores(results["cells"], track)

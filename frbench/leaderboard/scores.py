@@ -17,7 +17,12 @@ A record whose cells cover the standard grid of its protocol version
 (``frbench.tasks.protocol``: its simulators are the version's), each standard
 cell with at least ``STANDARD_EPISODES`` episodes, is on the ``main`` track and
 is scored on the standard grid's cells only (robots, families, levels and seeds
-of the standard grid in any grid simulator), so main records are comparable; any other record is ``partial`` and scored on all its
+of the standard grid in any grid simulator), so main records are comparable. From protocol 1.3 on, a record that is not main
+and whose cells cover the humanoid grid's G1 part (``frbench.evaluation.grids.humanoid_part``,
+each cell with at least ``HUMANOID_EPISODES`` episodes) and the unseen humanoid set
+(but the robots ``config.not_scored`` says the policy cannot drive) is on the
+``humanoid`` track, scored on the G1 part's cells, its humanoid set apart
+(`generalisation`'s ``humanoids``). Any other record is ``partial`` and scored on all its
 cells. Ranking: overall success (higher first), then sim-to-sim gap (lower
 first, none last), then submission time, then id — only among records of one
 protocol version (`check_same_protocol`). Each score has a 95 % stratified-
@@ -41,6 +46,12 @@ from frbench.evaluation.intervals import bootstrap_rates, percentile_interval, s
 from frbench.evaluation.results import SIM_TO_SIM_PAIRS
 from frbench.tasks.protocol import (
     GRID_SIMULATORS,
+    HUMANOID_EPISODES,
+    HUMANOID_LEVELS,
+    HUMANOID_PROTOCOL,
+    HUMANOID_ROBOTS,
+    HUMANOID_SEEDS,
+    HUMANOID_TERRAINS,
     KNOWN_PROTOCOL_VERSIONS,
     PROTOCOL_VERSION,
     STANDARD_EPISODES,
@@ -49,6 +60,7 @@ from frbench.tasks.protocol import (
     STANDARD_SEEDS,
     STANDARD_TERRAINS,
     grid_backends,
+    has_humanoid_grid,
     version_key,
 )
 
@@ -58,6 +70,10 @@ Groups = dict[tuple[str, str, str, int], tuple[float, int]]
 #: The standard grid's cells in every grid simulator: the cells a main record is scored on.
 STANDARD_GRID = frozenset(
     itertools.product(STANDARD_ROBOTS, GRID_SIMULATORS, STANDARD_TERRAINS, STANDARD_LEVELS, STANDARD_SEEDS)
+)
+#: The humanoid grid's G1 cells in every grid simulator: the cells a humanoid-track record is scored on.
+HUMANOID_GRID = frozenset(
+    itertools.product(HUMANOID_ROBOTS, GRID_SIMULATORS, HUMANOID_TERRAINS, HUMANOID_LEVELS, HUMANOID_SEEDS)
 )
 #: The newest protocol version: its grids hold every grid simulator.
 NEWEST = KNOWN_PROTOCOL_VERSIONS[-1]
@@ -91,18 +107,36 @@ def unseen_humanoid_grid(version: str = NEWEST) -> frozenset:
     return frozenset(unseen_part(humanoids=True, version=version).keys())
 
 
+@lru_cache(maxsize=8)
+def humanoid_grid(version: str) -> frozenset:
+    """The humanoid grid's G1 cells under protocol ``version`` (1.3 on; `frbench.evaluation.grids.humanoid_part`)."""
+    from frbench.evaluation.grids import humanoid_part
+
+    return frozenset(humanoid_part(version).keys())
+
+
+def humanoid_set_grid(version: str, not_scored: Iterable[str] = ()) -> frozenset:
+    """The unseen humanoid set's cells under protocol ``version`` for the robots not in ``not_scored`` (those the
+    policy cannot drive: `frbench.evaluation.grids.resolve_grids`)."""
+    skipped = set(not_scored)
+    return frozenset(key for key in unseen_humanoid_grid(version) if key[0] not in skipped)
+
+
 def needs_unseen_grid(protocol_version: str | None) -> bool:
     """Whether a main-track record of this protocol version must hold the unseen grid (1.2 and later)."""
     return protocol_version is not None and version_key(protocol_version) >= (1, 2)
 
 
-def _grid_shortfall(episodes: Mapping[tuple, int], grid: frozenset, label: str) -> str | None:
+def _grid_shortfall(episodes: Mapping[tuple, int], grid: frozenset, label: str,
+                    needed: int = STANDARD_EPISODES) -> str | None:
+    """Why ``episodes`` (cell key -> episodes) do not cover ``grid`` with ``needed`` episodes per cell (None when
+    they do)."""
     missing = len(grid - episodes.keys())
     if missing:
         return f"{missing} of the {label} grid's {len(grid)} cells are missing"
-    short = sum(1 for key in grid if episodes[key] < STANDARD_EPISODES)
+    short = sum(1 for key in grid if episodes[key] < needed)
     if short:
-        return f"{short} {label} cells have fewer than {STANDARD_EPISODES} episodes"
+        return f"{short} {label} cells have fewer than {needed} episodes"
     return None
 
 
@@ -124,17 +158,42 @@ def main_track_shortfall(cells: Sequence[Mapping], protocol_version: str | None 
     return shortfall
 
 
-def track_of(cells: Sequence[Mapping], protocol_version: str | None = None) -> str:
+def humanoid_track_shortfall(cells: Sequence[Mapping], protocol_version: str | None = None,
+                             not_scored: Iterable[str] = ()) -> str | None:
+    """Why the cells are not a humanoid-track record (``None`` when they are): from protocol 1.3 on, every cell of
+    the humanoid grid's G1 part with at least ``HUMANOID_EPISODES`` episodes, then the unseen humanoid set's cells
+    likewise for every robot of the set but those in ``not_scored`` (the results' ``config.not_scored``: robots
+    the policy cannot drive, scored n/a). Whether the record is main is `main_track_shortfall`'s question."""
+    version = protocol_version or PROTOCOL_VERSION
+    if not has_humanoid_grid(version):
+        return f"the humanoid grid is defined from protocol {HUMANOID_PROTOCOL} on, not under {version}"
+    episodes = {cell_key(c): c["episodes"] for c in cells}
+    return (_grid_shortfall(episodes, humanoid_grid(version), "humanoid G1", HUMANOID_EPISODES)
+            or _grid_shortfall(episodes, humanoid_set_grid(version, not_scored), "humanoid set", HUMANOID_EPISODES))
+
+
+def track_of(cells: Sequence[Mapping], protocol_version: str | None = None, not_scored: Iterable[str] = ()) -> str:
     """``main`` when the cells cover the whole standard grid (and, from 1.2 on, the unseen grid) with enough
-    episodes per cell, else ``partial``."""
-    return "main" if main_track_shortfall(cells, protocol_version) is None else "partial"
+    episodes per cell; else ``humanoid`` when they cover the humanoid grid (1.3 on; `humanoid_track_shortfall`,
+    ``not_scored`` the robots the policy cannot drive); else ``partial``."""
+    if main_track_shortfall(cells, protocol_version) is None:
+        return "main"
+    return "humanoid" if humanoid_track_shortfall(cells, protocol_version, not_scored) is None else "partial"
+
+
+def results_track(results: Mapping) -> str:
+    """`track_of` a checked results object (its cells, protocol version and ``config.not_scored``)."""
+    return track_of(results["cells"], results["protocol_version"], results["config"].get("not_scored", {}))
 
 
 def scored_cells(cells: Sequence[Mapping], track: str) -> list[Mapping]:
-    """The cells a record is scored on: the standard grid's for main records; for partial ones all cells but
-    the unseen grid's (scored apart, `unseen_cells`), or all if it has no others."""
+    """The cells a record is scored on: the standard grid's for main records, the humanoid grid's G1 part for
+    humanoid ones; for partial ones all cells but the unseen grid's (scored apart, `unseen_cells`), or all if it
+    has no others."""
     if track == "main":
         return [c for c in cells if cell_key(c) in STANDARD_GRID]
+    if track == "humanoid":
+        return [c for c in cells if cell_key(c) in HUMANOID_GRID]
     unseen = unseen_grid() | unseen_humanoid_grid()
     others = [c for c in cells if cell_key(c) not in unseen]
     return others or list(cells)
@@ -238,9 +297,15 @@ def record_scores(cells: Sequence[Mapping], track: str) -> dict:
     """The ``scores`` stored in a record: the standard (or, partial, the record's own) grid's; with the unseen
     grid's cells also ``unseen`` (its quadrupeds) and ``unseen_humanoids`` (when the policy drives humanoids)
     with the same fields, and ``generalisation_gap`` = the matched standard cells' mean (`matched_standard_cells`)
-    − the unseen mean. Records without unseen cells
+    − the unseen mean. A humanoid-track record: its G1 part's scores, and ``unseen_humanoids`` when it holds the
+    humanoid set. Records without unseen cells
     (every record before protocol 1.2) keep exactly their former scores."""
     scores = _scores_of(scored_cells(cells, track))
+    if track == "humanoid":
+        humanoids = unseen_cells(cells, humanoids=True)
+        if humanoids:
+            scores["unseen_humanoids"] = _scores_of(humanoids)
+        return scores
     unseen = unseen_cells(cells)
     matched = matched_standard_cells(cells)
     if unseen and matched:
@@ -343,27 +408,35 @@ def generalisation(cells: Sequence[Mapping], track: str) -> dict | None:
     ``unseen`` [score, low, high] over its quadruped cells, ``matched`` [score, low, high] over the standard cells
     on the same families and levels (`matched_standard_cells`), ``gap`` [point, low, high] = matched − unseen (per
     bootstrap replicate: both resampled), and ``humanoids`` [score, low, high] over the humanoid set, or None
-    ("n/a": the policy does not drive humanoids). ``track`` is kept for the callers' symmetry."""
+    ("n/a": the policy does not drive humanoids). A humanoid-track record (``track``) has ``humanoids`` only: its
+    humanoid set's [score, low, high], or None."""
+    if track == "humanoid":
+        return {"humanoids": _humanoid_set_score(cells)}
     unseen = unseen_cells(cells)
     scored = matched_standard_cells(cells)
     if not unseen or not scored:
         return None
-
-    def mean_and_replicates(chosen: Sequence[Mapping]) -> tuple[float, np.ndarray, int, int]:
-        _, rates = _replicates(_fingerprint(chosen))
-        point = math.fsum(c["successes"] / c["episodes"] for c in chosen) / len(chosen)
-        return point, rates.mean(axis=1), sum(c["successes"] for c in chosen), sum(c["episodes"] for c in chosen)
-
-    u_point, u_reps, u_k, u_n = mean_and_replicates(unseen)
-    s_point, s_reps, s_k, s_n = mean_and_replicates(scored)
-    humanoid = unseen_cells(cells, humanoids=True)
-    h = None
-    if humanoid:
-        h_point, h_reps, h_k, h_n = mean_and_replicates(humanoid)
-        h = [h_point, *percentile_interval(h_reps, h_k, h_n)]
+    u_point, u_reps, u_k, u_n = _mean_and_replicates(unseen)
+    s_point, s_reps, s_k, s_n = _mean_and_replicates(scored)
     return {
         "unseen": [u_point, *percentile_interval(u_reps, u_k, u_n)],
         "matched": [s_point, *percentile_interval(s_reps, s_k, s_n)],
         "gap": [s_point - u_point, *percentile_interval(s_reps - u_reps)],
-        "humanoids": h,
+        "humanoids": _humanoid_set_score(cells),
     }
+
+
+def _humanoid_set_score(cells: Sequence[Mapping]) -> list[float] | None:
+    """[score, low, high] of the record's unseen humanoid set cells (95 % interval), None without them."""
+    humanoid = unseen_cells(cells, humanoids=True)
+    if not humanoid:
+        return None
+    point, replicates, successes, episodes = _mean_and_replicates(humanoid)
+    return [point, *percentile_interval(replicates, successes, episodes)]
+
+
+def _mean_and_replicates(chosen: Sequence[Mapping]) -> tuple[float, np.ndarray, int, int]:
+    """(mean cell success, its bootstrap replicates (R,), successes, episodes) of ``chosen`` cells."""
+    _, rates = _replicates(_fingerprint(chosen))
+    point = math.fsum(c["successes"] / c["episodes"] for c in chosen) / len(chosen)
+    return point, rates.mean(axis=1), sum(c["successes"] for c in chosen), sum(c["episodes"] for c in chosen)

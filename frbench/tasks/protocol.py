@@ -64,6 +64,23 @@ UNSEEN_LEVELS = (1, 5)
 UNSEEN_SEEDS = STANDARD_SEEDS
 UNSEEN_EPISODES = STANDARD_EPISODES
 
+#: The first protocol whose named grids hold the humanoid grid (`frbench.evaluation.grids`, ``--grid humanoid``).
+HUMANOID_PROTOCOL = "1.3"
+#: The humanoid grid's G1 part (docs/protocol.md, "The humanoid track"): the G1 x the grid's three simulators x the
+#: four families where a humanoid recovery is defined x levels 1, 5, 10 x seeds 0-3 x 3 episodes = 144 cells, 432
+#: episodes: a 95 % interval of at most +-4.7 points on the overall G1 score even at 50 % in every cell
+#: (1.96 x sqrt(0.25 / 432) = 0.0471). Its second part is the unseen grid's humanoid set (`unseen_humanoids`).
+HUMANOID_ROBOTS = ("g1",)
+HUMANOID_TERRAINS = ("flat", "rough", "slopes", "stairs")
+HUMANOID_LEVELS = (1, 5, 10)
+HUMANOID_SEEDS = (0, 1, 2, 3)
+HUMANOID_EPISODES = 3
+
+
+def has_humanoid_grid(version: str) -> bool:
+    """Whether protocol ``version`` defines the humanoid grid (`HUMANOID_PROTOCOL` and later)."""
+    return version_key(version) >= version_key(HUMANOID_PROTOCOL)
+
 
 def unseen_quadrupeds() -> tuple[str, ...]:
     """The unseen grid's quadrupeds (`frbench.robots.unseen.UNSEEN_QUADRUPEDS`), lightest first."""
