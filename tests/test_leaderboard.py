@@ -671,7 +671,7 @@ def test_page_is_self_contained():
 
 def test_empty_board_renders():
     readme = render_markdown([])
-    assert readme.count("_No records yet._") == 2 and "_None._" in readme
+    assert readme.count("_No records yet._") == 3 and "_None._" in readme  # main board, humanoid track, records
     data = page_data([])
     assert data["records"] == [] and data["families"] == ["flat", "rough", "slopes", "stairs", "stones", "gaps", "beams"]
     assert render_html([]) == render_html([])  # deterministic: no timestamps

@@ -74,6 +74,18 @@ def board_dir(tmp_path_factory) -> Path:
     return root
 
 
+#: The end of each harness: what it saw (``out``, or the error that stopped it) as JSON in ``<pre id="test-output">``.
+REPORT = r"""
+  } catch (e) {
+    out.error = String(e && e.stack || e);
+  }
+  var pre = document.createElement("pre");
+  pre.id = "test-output";
+  pre.textContent = JSON.stringify(out);
+  document.body.appendChild(pre);
+})();
+"""
+
 HARNESS = r"""
 (function () {
   var out = {};
@@ -144,24 +156,16 @@ HARNESS = r"""
     out.pwned = window.__pwned || null;
     out.images = document.querySelectorAll("img").length;
     out.scripts = document.querySelectorAll("script").length;
-  } catch (e) {
-    out.error = String(e && e.stack || e);
-  }
-  var pre = document.createElement("pre");
-  pre.id = "test-output";
-  pre.textContent = JSON.stringify(out);
-  document.body.appendChild(pre);
-})();
-"""
+""" + REPORT
 
 
-def drive(page: Path, tmp_path: Path) -> tuple[dict, list[str]]:
-    """Open a copy of ``page`` with the harness appended; return what the harness saw and console errors."""
+def drive(page: Path, tmp_path: Path, harness: str = HARNESS) -> tuple[dict, list[str]]:
+    """Open a copy of ``page`` with the ``harness`` appended; return what the harness saw and console errors."""
     text = page.read_text(encoding="utf-8")
-    digest = base64.b64encode(hashlib.sha256(HARNESS.encode()).digest()).decode()
+    digest = base64.b64encode(hashlib.sha256(harness.encode()).digest()).decode()
     text, count = re.subn(r"script-src ('sha256-[^']+')", rf"script-src \1 'sha256-{digest}'", text)
     assert count == 1
-    text = text.replace("</body>", f"<script>{HARNESS}</script>\n</body>")
+    text = text.replace("</body>", f"<script>{harness}</script>\n</body>")
     copy = tmp_path / "driven.html"
     copy.write_text(text, encoding="utf-8")
     done = chromium(tmp_path, "--dump-dom", copy.as_uri())
@@ -228,6 +232,50 @@ def test_submitted_markup_stays_inert(board_dir, tmp_path):
     assert out["hostileName"] == 'pwn</script><script>window.__pwned=1</script>'
     assert '<img src=x onerror="window.__pwned=2"><b>bold</b>' in out["hostileDetails"]
     assert out["hostileLinks"] == 0  # a javascript: link is shown as no link
+
+
+HUMANOID_HARNESS = r"""
+(function () {
+  var out = {};
+  function q(s) { return document.querySelector(s); }
+  function texts(selector) { return Array.prototype.map.call(document.querySelectorAll(selector), function (n) { return n.textContent; }); }
+  try {
+    out.keys = Array.prototype.map.call(document.querySelectorAll("#humanoid-table thead th"), function (th) { return th.dataset.key; });
+    out.rows = Array.prototype.map.call(document.querySelectorAll("#humanoid-table tbody tr"), function (tr) {
+      return Array.prototype.map.call(tr.children, function (td) { return td.textContent; });
+    });
+    out.note = q("#humanoid-note").textContent;
+    out.mainEmpty = q("#main-empty").textContent;
+    out.partial = texts("#partial-table tbody tr td:nth-child(2)");
+    document.querySelectorAll("#humanoid-table tbody tr")[0].click();
+    out.details = q("#details-body").textContent;
+""" + REPORT
+
+
+def test_the_humanoid_track_is_ranked_in_its_own_table(tmp_path, monkeypatch):
+    from frbench.leaderboard import render, sections
+    from test_humanoid_track import NOT_DRIVEN, humanoid_results, record_of
+
+    for module in (sections, render):
+        monkeypatch.setattr(module, "PROTOCOL_VERSION", "1.3")
+    records = [record_of(humanoid_results("keyframe-humanoid", with_set=False)),
+               record_of(humanoid_results("mpc", with_set=True, better=True, inputs="simulator-state"))]
+    page = tmp_path / "index.html"
+    page.write_text(render_html(records), encoding="utf-8")
+    out, errors = drive(page, tmp_path, HUMANOID_HARNESS)
+    assert "error" not in out, out.get("error")
+    assert errors == []
+    keys, rows = out["keys"], out["rows"]
+    assert keys[:5] == ["rank", "name", "policy", "submitter", "overall"]
+    assert [k for k in keys if k.startswith("family:")] == ["family:flat", "family:rough", "family:slopes", "family:stairs"]
+    assert "unseen" not in keys and "humanoids" in keys and "backend:physx" in keys
+    assert [row[1] for row in rows] == ["mpc", "keyframe-humanoid"] and rows[0][2] == "mpc (simulator state)"
+    assert rows[0][keys.index("overall")].startswith("0.750 (") and rows[1][keys.index("overall")].startswith("0.500 (")
+    assert rows[0][keys.index("humanoids")].startswith("0.111 (")
+    assert rows[1][keys.index("humanoids")] == f"n/a: icub, talos: {NOT_DRIVEN}"
+    assert "flat, rough, slopes, stairs" in out["note"] and "144 cells" in out["note"] and "(simulator state)" in out["note"]
+    assert out["mainEmpty"].startswith("No records yet") and out["partial"] == []
+    assert "humanoid track (the G1 grid and the humanoid set)" in out["details"]
 
 
 def test_empty_board_page(tmp_path):

@@ -9,9 +9,9 @@ beside the record, or refers to it by sha256 when it is a checkpoint shipped in 
 (`frbench.leaderboard.policy_files`). Bad input: one line on
 stderr naming the file and field, exit 2, nothing written.
 
-``frbench leaderboard [--format table|md|html|json] [--robot R --backend B --terrain T]``
-prints the ranking (table, json) or regenerates ``leaderboard/README.md`` (md)
-or ``leaderboard/index.html`` (html). ``frbench leaderboard --check`` validates
+``frbench leaderboard [--format table|md|html|json] [--robot R --backend B --terrain T] [--track T]``
+prints the ranking (table, json; ``--track humanoid``: the humanoid track alone) or regenerates
+``leaderboard/README.md`` (md) or ``leaderboard/index.html`` (html). ``frbench leaderboard --check`` validates
 every record and that the generated files are up to date; it exits 1 with one
 line per problem (for CI). Reading the board (and submitting) checks a record file in full once per content
 and keeps the board's summary of it in frbench's cache folder (`frbench.leaderboard.summaries`), so a read
@@ -27,6 +27,9 @@ import argparse
 import sys
 
 from frbench.errors import FrbenchError, unknown_name
+
+#: ``--track``'s values: the board's sections (`frbench.leaderboard.sections.SECTIONS`; a test keeps them equal).
+SECTION_CHOICES = ("main", "humanoid", "partial", "archived")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -62,6 +65,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     board.add_argument("--robot", help="score only this robot's cells (table and json)")
     board.add_argument("--backend", help="score only this backend's cells (table and json)")
     board.add_argument("--terrain", help="score only this terrain family's cells (table and json)")
+    board.add_argument("--track", choices=SECTION_CHOICES, default=None,
+                       help="print one section of the board alone: main, humanoid (the humanoid track), partial or "
+                            "archived (table and json)")
     board.add_argument("--root", default=None, help="leaderboard folder")
     board.add_argument("--check", action="store_true",
                        help="validate every record and that README.md and index.html are up to date; exit 1 if not")
@@ -95,9 +101,17 @@ def run_submit(args: argparse.Namespace) -> int:
         f"{scores['cells']} cells"
     )
     if record["track"] == "partial":
-        from frbench.leaderboard.scores import main_track_shortfall
+        from frbench.leaderboard.scores import humanoid_track_shortfall, main_track_shortfall
+        from frbench.tasks.protocol import HUMANOID_ROBOTS
 
-        print(f"partial, not ranked on the main board: {main_track_shortfall(record['results']['cells'], record['results']['protocol_version'])}")
+        results = record["results"]
+        print(f"partial, not ranked on the main board: {main_track_shortfall(results['cells'], results['protocol_version'])}")
+        if any(c["robot"] in HUMANOID_ROBOTS for c in results["cells"]):
+            reason = humanoid_track_shortfall(results["cells"], results["protocol_version"],
+                                              results["config"].get("not_scored", {}))
+            print(f"not on the humanoid track: {reason}")
+    elif record["track"] == "humanoid":
+        print("humanoid track: ranked with the other humanoid-track records of its protocol version")
     if entry is not None:
         how = " (a checkpoint shipped in frbench: referred to by its sha256, not stored again)" if "shipped" in entry else ""
         print(f"{'would attach' if args.dry_run else 'attached'} policy file {policy_file_label(entry)} "
@@ -116,8 +130,8 @@ def run_leaderboard(args: argparse.Namespace) -> int:
     filters = {"robot": args.robot, "backend": args.backend, "terrain": args.terrain}
     given = [f"--{k}" for k, v in filters.items() if v is not None]
     if args.check:
-        if args.format or given:
-            raise FrbenchError("--check takes no --format, --robot, --backend or --terrain")
+        if args.format or given or args.track:
+            raise FrbenchError("--check takes no --format, --robot, --backend, --terrain or --track")
         report = check(root)
         if not report.ok:
             for problem in report.problems:
@@ -130,11 +144,13 @@ def run_leaderboard(args: argparse.Namespace) -> int:
 
         sections = Counter(section_of(r) for r in report.records)
         print(f"leaderboard {root} is valid and up to date: {len(report.records)} records (protocol {PROTOCOL_VERSION}: "
-              f"{sections['main']} main, {sections['partial']} partial; {sections['archived']} archived)")
+              f"{sections['main']} main, {sections['humanoid']} humanoid, {sections['partial']} partial; "
+              f"{sections['archived']} archived)")
         return 0
     fmt = args.format or "table"
     if fmt in ("md", "html"):
-        if given:
+        if given or args.track:
+            given += ["--track"] if args.track else []
             raise FrbenchError(
                 f"{', '.join(given)}: filters apply to --format table and json; README.md and index.html always show "
                 "the whole board (the page has its own filters)"
@@ -155,5 +171,5 @@ def run_leaderboard(args: argparse.Namespace) -> int:
         if filters[key] is not None and filters[key] not in known[listing]:
             raise unknown_name(key, filters[key], known[listing])
     render = render_table if fmt == "table" else render_json
-    sys.stdout.write(render(records, **filters))
+    sys.stdout.write(render(records, track=args.track, **filters))
     return 0

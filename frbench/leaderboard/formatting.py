@@ -72,9 +72,10 @@ def how_reproduced(check: Mapping) -> str:
 
 def fmt_generalisation(row: Mapping, key: str) -> str:
     """A row's unseen score (``unseen``), matched standard score (``matched``), gap (``gap``) or humanoid score
-    (``humanoids``: n/a when the policy drives none) with its interval; ``-`` for a record without the unseen grid."""
+    (``humanoids``: n/a when the policy drives none) with its interval; ``-`` for a record without the unseen grid
+    (a humanoid-track record has the humanoid set's score only)."""
     g = row.get("generalisation")
-    if g is None:
+    if g is None or key not in g:
         return "-"
     if key == "gap":
         return fmt_gap(g["gap"])

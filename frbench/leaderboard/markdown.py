@@ -21,10 +21,10 @@ from frbench.leaderboard.formatting import (
 )
 from frbench.leaderboard.policy_files import MAX_POLICY_BYTES
 from frbench.leaderboard.records import record_file_name
-from frbench.leaderboard.render import axes, board, standard_text
+from frbench.leaderboard.render import axes, board, humanoid_text, humanoid_version, standard_text
 from frbench.leaderboard.sections import SIMULATOR_STATE, section_of
 from frbench.leaderboard.verify import RELATIVE_TOLERANCE, REPRODUCED_TOLERANCE
-from frbench.tasks.protocol import KNOWN_PROTOCOL_VERSIONS, PROTOCOL_VERSION
+from frbench.tasks.protocol import HUMANOID_EPISODES, HUMANOID_TERRAINS, KNOWN_PROTOCOL_VERSIONS, PROTOCOL_VERSION
 
 def _unseen_text() -> str:
     from frbench.evaluation.grids import unseen_part
@@ -51,6 +51,47 @@ def unseen_table(ranking: Sequence[Mapping]) -> list[str]:
             str(row["board_rank"]), f"[{row['id'][:12]}](records/{record_file_name(row['id'])})",
         ]))
     return out + [""]
+
+
+def humanoid_section(rows: Sequence[Mapping], families: Sequence[str], backends: Sequence[str],
+                     pairs: Sequence[str]) -> list[str]:
+    """The README's humanoid track: its grid, rules and ranked table (`board`'s ``humanoid`` rows)."""
+    from frbench.evaluation.grids import humanoid_part
+
+    episodes = len(humanoid_part(humanoid_version()).keys()) * HUMANOID_EPISODES
+    half_width = 1.96 * (0.25 / episodes) ** 0.5
+    lines = [
+        f"## Humanoid track (protocol {PROTOCOL_VERSION})",
+        "",
+        f"Records that cover the humanoid grid: {humanoid_text()}. *Overall* and the columns up to *Gap* are the G1",
+        f"part's ({episodes} episodes: a 95 % interval of at most ±{100 * half_width:.1f} points at 50 % success);",
+        "*Humanoid set*: the set's score with its interval, or n/a with the reason (a robot the policy does not",
+        "drive), never 0. Ranked on their own, like the main board: by overall success, then by sim-to-sim gap",
+        "(`~`: the overall interval overlaps the one above). A policy that reads the simulator's state is ranked",
+        "here, marked *(simulator state)*: it is not blind (docs/protocol.md, \"The humanoid track\").",
+        "",
+    ]
+    if not rows:
+        return lines + ["_No records yet._", ""]
+    shown = [f for f in families if f in HUMANOID_TERRAINS]
+    head = ["#", "Name", "Policy", "Overall G1"] + [md_escape(f) for f in shown] \
+        + [BACKEND_LABELS.get(b, md_escape(b)) for b in backends] + gap_headers(pairs) \
+        + ["Humanoid set", "Verified", "Record"]
+    lines += [md_row(head), md_row(["---"] * len(head))]
+    for row in rows:
+        s, iv = row["scores"], row["intervals"]
+        state = " (simulator state)" if row["inputs"] == SIMULATOR_STATE else ""
+        humanoids = fmt_generalisation(row, "humanoids")
+        if humanoids == "n/a" and row.get("humanoids_not_scored"):
+            humanoids = f"n/a: {md_escape(row['humanoids_not_scored'])}"
+        lines.append(md_row(
+            [str(row["rank"]) + (" ~" if row["tied_above"] else ""), md_escape(row["name"]),
+             md_escape(row["policy"]) + state, f"**{fmt_interval(s['overall'], iv['overall'])}**"]
+            + [fmt_interval(s["per_family"].get(f), iv["per_family"].get(f)) for f in shown]
+            + [fmt_interval(s["per_backend"].get(b), iv["per_backend"].get(b)) for b in backends]
+            + [fmt_gap(signed_gap_of(iv, p)) for p in pairs]
+            + [humanoids, fmt_verified(row["verified"]), f"[{row['id'][:12]}](records/{record_file_name(row['id'])})"]))
+    return lines + [""]
 
 
 def render_markdown(records: Sequence[Mapping]) -> str:
@@ -145,6 +186,7 @@ def render_markdown(records: Sequence[Mapping]) -> str:
         "",
     ]
     lines += unseen_table(data["unseen_ranking"])
+    lines += humanoid_section(data["humanoid"], families, backends, pairs)
     lines += [
         f"## Partial records (protocol {PROTOCOL_VERSION})",
         "",
@@ -168,7 +210,7 @@ def render_markdown(records: Sequence[Mapping]) -> str:
     if any((row.get("verified") or {}).get("processor_bound") for row in data["archived"]):
         lines += [PROCESSOR_BOUND_NOTE, ""]
     by_id = {r["id"]: r for r in records}
-    rows = data["main"] + data["partial"] + data["archived"]
+    rows = data["main"] + data["humanoid"] + data["partial"] + data["archived"]
     lines += ["## Records", ""]
     if not rows:
         lines += ["_No records yet._", ""]

@@ -4,7 +4,8 @@ The page works opened from disk, with no network: data is embedded as JSON,
 the script recomputes scores for the chosen filters from per-(robot, backend,
 terrain, level) aggregates, shows each score's 95 % interval (precomputed by
 frbench for no filter and for each single filter), marks ranked neighbours whose
-intervals overlap, keeps records of earlier protocol versions in an archived
+intervals overlap, ranks the humanoid track in its own table (the G1 grid's scores and
+the humanoid set's, or n/a with the reason), keeps records of earlier protocol versions in an archived
 table that is never ranked against the current one, sorts the tables, draws one SVG success-vs-level
 chart per terrain family and shows a record's provenance on click. It builds
 the DOM with ``textContent`` and attributes only (never ``innerHTML``), so
@@ -47,6 +48,12 @@ cells and episodes; shown with no filter or one filter). Click a row for its pro
 <div class="scroll"><table id="main-table" class="board"></table></div>
 <p class="empty" id="main-empty" hidden>No records yet.</p>
 </section>
+<section id="humanoid-board">
+<h2>Humanoid track</h2>
+<p class="note" id="humanoid-note"></p>
+<div class="scroll"><table id="humanoid-table" class="board"></table></div>
+<p class="empty" id="humanoid-empty" hidden>No records yet.</p>
+</section>
 <section id="partial-board">
 <h2>Partial records</h2>
 <p class="note">Records that do not cover the whole standard grid, scored on the cells they have; not ranked against the main board.</p>
@@ -84,6 +91,7 @@ PAGE_SCRIPT = r"""
   var DATA = JSON.parse(document.getElementById("leaderboard-data").textContent);
   var COLORS = ["#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf", "#7f7f7f", "#bcbd22"];
   var LABELS = DATA.labels;
+  var HUMANOID_DROPS = ["unseen", "matched", "gengap"];  // the unseen grid's columns, not the humanoid track's
   var SVGNS = "http://www.w3.org/2000/svg";
   var state = {robot: "", backend: "", family: "", sort: "rank", dir: "asc", record: ""};
 
@@ -168,7 +176,7 @@ PAGE_SCRIPT = r"""
     var previous = null;
     list.forEach(function (row, i) {
       row.rank = i + 1;
-      var ranked = section === "main" || (section === "archived" && row.r.track === "main");
+      var ranked = section === "main" || section === "humanoid" || (section === "archived" && row.r.track === "main");
       var same = previous && previous.r.protocol_version === row.r.protocol_version;
       row.tied = ranked && !!same && overlaps(row.iv && row.iv.overall, previous.iv && previous.iv.overall);
       if (ranked) { previous = row; }
@@ -212,18 +220,19 @@ PAGE_SCRIPT = r"""
     });
     cols.push({key: "unseen", label: "Unseen", title: "Mean success on the unseen grid (real quadrupeds no policy trains on; protocol 1.2) with its 95 % interval; sort by it for the ranking by unseen success",
                num: true, score: true, dir: "desc",
-               get: function (x) { var g = x.r.generalisation; return g ? g.unseen[0] : null; },
-               iv: function (x) { var g = x.r.generalisation; return g ? [g.unseen[1], g.unseen[2]] : null; }});
+               get: function (x) { var g = x.r.generalisation; return g && g.unseen ? g.unseen[0] : null; },
+               iv: function (x) { var g = x.r.generalisation; return g && g.unseen ? [g.unseen[1], g.unseen[2]] : null; }});
     cols.push({key: "matched", label: "Matched std", title: "Mean success of the standard grid's cells on the unseen grid's families and levels, with its 95 % interval",
                num: true, score: true, dir: "desc",
-               get: function (x) { var g = x.r.generalisation; return g ? g.matched[0] : null; },
-               iv: function (x) { var g = x.r.generalisation; return g ? [g.matched[1], g.matched[2]] : null; }});
+               get: function (x) { var g = x.r.generalisation; return g && g.matched ? g.matched[0] : null; },
+               iv: function (x) { var g = x.r.generalisation; return g && g.matched ? [g.matched[1], g.matched[2]] : null; }});
     cols.push({key: "gengap", label: "Matched \u2212 unseen", title: "Matched standard success minus unseen success with its 95 % interval: the loss on bodies never trained on, terrain held equal", num: true, dir: "asc",
-               get: function (x) { var g = x.r.generalisation; return g ? g.gap[0] : null; },
-               show: function (x) { var g = x.r.generalisation; return g ? signed(g.gap[0]) + " (" + signed(g.gap[1]) + ".." + signed(g.gap[2]) + ")" : "\u2013"; }});
+               get: function (x) { var g = x.r.generalisation; return g && g.gap ? g.gap[0] : null; },
+               show: function (x) { var g = x.r.generalisation; return g && g.gap ? signed(g.gap[0]) + " (" + signed(g.gap[1]) + ".." + signed(g.gap[2]) + ")" : "\u2013"; }});
     cols.push({key: "humanoids", label: "Humanoids", title: "Mean success on the unseen humanoid set (Talos, iCub); n/a: the policy does not drive humanoids", num: true, dir: "desc",
                get: function (x) { var g = x.r.generalisation; return g && g.humanoids ? g.humanoids[0] : null; },
-               show: function (x) { var g = x.r.generalisation; return g ? (g.humanoids ? g.humanoids[0].toFixed(3) + " (" + g.humanoids[1].toFixed(3) + "-" + g.humanoids[2].toFixed(3) + ")" : "n/a") : "\u2013"; }});
+               show: function (x) { var g = x.r.generalisation; return g ? (g.humanoids ? g.humanoids[0].toFixed(3) + " (" + g.humanoids[1].toFixed(3) + "-" + g.humanoids[2].toFixed(3) + ")"
+                 : "n/a" + (x.r.humanoids_not_scored ? ": " + x.r.humanoids_not_scored : "")) : "\u2013"; }});
     cols.push({key: "cells", label: "Cells", num: true, dir: "desc", get: function (x) { return x.s.cells; }});
     cols.push({key: "file", label: "Policy file", title: "the policy file attached to the record", dir: "asc",
                get: function (x) { return x.r.policy_file ? "attached" : null; }});
@@ -261,12 +270,18 @@ PAGE_SCRIPT = r"""
     var empty = document.getElementById(track + "-empty");
     var list = rows(track), cols = columns();
     if (track !== "archived") { cols = cols.filter(function (c) { return c.key !== "protocol"; }); }
+    if (track === "humanoid") {  // the G1 grid's families, and the humanoid set in place of the unseen grid
+      cols = cols.filter(function (c) {
+        return HUMANOID_DROPS.indexOf(c.key) < 0 && (!c.family || DATA.humanoid.families.indexOf(c.family) >= 0);
+      });
+    }
     sortRows(list, cols);
     table.textContent = "";
     empty.hidden = list.length > 0;
     table.hidden = list.length === 0;
     if (!DATA.records.some(function (r) { return r.section === track; })) {
-      empty.textContent = track === "main" ? "No records yet: submit one with frbench submit RESULTS.json." : "None.";
+      empty.textContent = track === "main" ? "No records yet: submit one with frbench submit RESULTS.json."
+        : track === "humanoid" ? "No records yet." : "None.";
     } else {
       empty.textContent = "No records match these filters.";
     }
@@ -347,7 +362,8 @@ PAGE_SCRIPT = r"""
     dlRow(dl, "Record", rec.id);
     dlRow(dl, "Track", rec.superseded_by ? "archived (superseded by record " + rec.superseded_by.slice(0, 12) + ": the same policy file re-scored in the canonical joint frame)"
                        : rec.section === "archived" ? "archived (protocol " + rec.protocol_version + ", not ranked against " + DATA.protocol + ")"
-                       : rec.track === "main" ? "main board (standard grid)" : "partial");
+                       : rec.track === "main" ? "main board (standard grid)"
+                       : rec.track === "humanoid" ? "humanoid track (the G1 grid and the humanoid set)" : "partial");
     dlRow(dl, "Policy", rec.policy + (rec.inputs === "simulator-state"
       ? " (reads the simulator's state and the terrain: not a blind policy, never ranked with them)" : ""));
     dlRow(dl, "Submitter", rec.submitter);
@@ -471,6 +487,7 @@ PAGE_SCRIPT = r"""
   function update() {
     ["robot", "backend", "family"].forEach(function (k) { document.getElementById("filter-" + k).value = state[k]; });
     var mainRows = renderTable("main"), partialRows = renderTable("partial");
+    renderTable("humanoid");
     renderTable("archived");
     renderDetails();
     renderCharts(mainRows.slice().sort(function (a, b) { return a.rank - b.rank; }),
@@ -481,6 +498,10 @@ PAGE_SCRIPT = r"""
   document.getElementById("standard-note").textContent =
     "Protocol " + DATA.protocol + ". Records that cover the standard grid: " + DATA.standard +
     ". Ranked by overall success, then by sim-to-sim gap; \u201c~\u201d after a rank: its overall interval overlaps the record above.";
+  document.getElementById("humanoid-note").textContent =
+    "Protocol " + DATA.protocol + ". Records that cover the humanoid grid: " + DATA.humanoid.text +
+    ". Ranked on their own by overall G1 success, then by sim-to-sim gap; the humanoid set's score beside it, or " +
+    "n/a with the reason. A policy that reads the simulator's state is ranked here, marked (simulator state).";
   document.getElementById("archived-note").textContent =
     "Records evaluated under an earlier protocol version; never ranked against protocol " + DATA.protocol + ".";
   fillSelect("filter-robot", DATA.robots, {});

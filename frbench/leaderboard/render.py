@@ -37,9 +37,11 @@ from frbench.leaderboard.scores import (
     rank_key,
     scored_cells,
 )
-from frbench.leaderboard.sections import SIMULATOR_STATE, inputs_of, section_of, superseded
+from frbench.leaderboard.sections import SECTIONS, SIMULATOR_STATE, inputs_of, section_of, superseded
 from frbench.leaderboard.summaries import interval_views, record_generalisation, record_intervals
 from frbench.tasks.protocol import (
+    HUMANOID_PROTOCOL,
+    HUMANOID_TERRAINS,
     KNOWN_PROTOCOL_VERSIONS,
     PROTOCOL_VERSION,
     STANDARD_BACKENDS,
@@ -48,6 +50,8 @@ from frbench.tasks.protocol import (
     STANDARD_ROBOTS,
     STANDARD_SEEDS,
     STANDARD_TERRAINS,
+    has_humanoid_grid,
+    unseen_humanoids,
 )
 
 PROVENANCE_FIELDS = ("schema_version", "protocol_version", "frbench", "versions", "created", "processor", "policy", "config",
@@ -63,8 +67,21 @@ def _identity(record: dict) -> dict:
     verified = (record.get("verifications") or [None])[-1]
     if verified is not None and processor_bound(record):
         verified = {**verified, "processor_bound": True}
+    reason = humanoid_set_reason(record) if record["track"] == "humanoid" else None
     return {"id": record["id"], **{key: sub[key] for key in keys}, "track": record["track"],
-            "policy_file": policy_file_label(record.get("policy_file")), "verified": verified}
+            "policy_file": policy_file_label(record.get("policy_file")), "verified": verified,
+            **({"humanoids_not_scored": reason} if reason else {})}
+
+
+def humanoid_set_reason(record: Mapping) -> str | None:
+    """Why robots of the unseen humanoid set have no score in a record (its ``config.not_scored``, one line:
+    ``icub, talos: the policy does not drive this robot (...)``); None when it names none."""
+    skipped = record["results"]["config"].get("not_scored", {})
+    reasons: dict[str, list[str]] = {}
+    for robot in unseen_humanoids():
+        if robot in skipped:
+            reasons.setdefault(skipped[robot], []).append(robot)
+    return "; ".join(f"{', '.join(sorted(robots))}: {reason}" for reason, robots in reasons.items()) or None
 
 
 def _ordered(standard: Sequence, found: Iterable) -> list:
@@ -79,6 +96,31 @@ def standard_text() -> str:
         f"x levels {'/'.join(map(str, STANDARD_LEVELS))} x seeds {'/'.join(map(str, STANDARD_SEEDS))}"
         f", at least {STANDARD_EPISODES} episodes per cell"
     )
+
+
+def humanoid_version() -> str:
+    """The protocol whose humanoid grid the board describes: the current one, or where it has none, the first that
+    does (`frbench.tasks.protocol.HUMANOID_PROTOCOL`)."""
+    return PROTOCOL_VERSION if has_humanoid_grid(PROTOCOL_VERSION) else HUMANOID_PROTOCOL
+
+
+def humanoid_text() -> str:
+    """The humanoid grid in words (`frbench.evaluation.grids.grid_parts`) under `humanoid_version`, with a note
+    that the current protocol ranks none where it has no humanoid grid."""
+    from frbench.evaluation.grids import grid_parts
+
+    version = humanoid_version()
+    g1, humanoid_set = grid_parts("humanoid", version)
+    text = (f"the G1 ({', '.join(g1.robots)}) x {len(g1.backends)} simulators ({', '.join(g1.backends)}) x "
+            f"{', '.join(g1.terrains)} x levels {'/'.join(map(str, g1.levels))} x seeds "
+            f"{'/'.join(map(str, g1.seeds))}, {g1.episodes} episodes per cell ({len(g1.keys())} cells), and the "
+            f"unseen humanoid set ({', '.join(humanoid_set.robots)}) x levels "
+            f"{'/'.join(map(str, humanoid_set.levels))} on the same families, seeds and simulators "
+            f"({len(humanoid_set.keys())} cells)")
+    if version != PROTOCOL_VERSION:
+        text += (f"; defined from protocol {HUMANOID_PROTOCOL} on, so the current protocol {PROTOCOL_VERSION} ranks "
+                 f"none (protocol {HUMANOID_PROTOCOL} records are archived until it is current)")
+    return text
 
 
 def axes(records: Sequence[Mapping]) -> dict[str, list]:
@@ -109,11 +151,12 @@ def _rank(rows: list[dict]) -> None:
 def board(records: Sequence[Mapping], *, robot: str | None = None, backend: str | None = None, terrain: str | None = None) -> dict:
     """Rows of every section, scored on the cells matching the filters, each score with its 95 % interval.
 
-    ``main`` and ``partial``: records of the current protocol version (main ranked); ``archived``: records of
+    ``main``, ``humanoid`` and ``partial``: records of the current protocol version (main and humanoid ranked,
+    each on its own; `frbench.leaderboard.sections.section_of`); ``archived``: records of
     other versions, main-track ones ranked within their own version only, never against the current ones.
     Records without cells matching the filters are left out.
     """
-    sections: dict[str, list[dict]] = {"main": [], "partial": [], "archived": []}
+    sections: dict[str, list[dict]] = {name: [] for name in SECTIONS}
     replaced = superseded(records)
     for record in records:
         cells = scored_cells(record["results"]["cells"], record["track"])
@@ -131,6 +174,7 @@ def board(records: Sequence[Mapping], *, robot: str | None = None, backend: str 
             "generalisation": record_generalisation(record) if unfiltered else None,
         })
     _rank(sections["main"])
+    _rank(sections["humanoid"])
     sections["partial"].sort(key=lambda row: rank_key(row["scores"], row["submitted"], row["id"]))
     archived = sections["archived"]
     for version in sorted({row["protocol_version"] for row in archived}):  # ranked within their own version only
@@ -161,12 +205,20 @@ def unseen_ranking(main: Sequence[Mapping]) -> list[dict]:
 # --------------------------------------------------------------------------- text and JSON
 
 
-def render_json(records: Sequence[Mapping], **filters) -> str:
-    return json.dumps(board(records, **filters), indent=2, sort_keys=True, ensure_ascii=False, allow_nan=False) + "\n"
+def render_json(records: Sequence[Mapping], track: str | None = None, **filters) -> str:
+    """`board` as JSON (one key per section, ``humanoid`` among them); ``track``: that section alone (with the main
+    board its ranking by unseen success)."""
+    data = board(records, **filters)
+    if track is not None:
+        kept = {track, "filters", "protocol_version"} | ({"unseen_ranking"} if track == "main" else set())
+        data = {key: value for key, value in data.items() if key in kept}
+    return json.dumps(data, indent=2, sort_keys=True, ensure_ascii=False, allow_nan=False) + "\n"
 
 
 def _columns(families: Sequence[str], backends: Sequence[str], pairs: Sequence[str],
-             ranked: bool) -> list[tuple[str, callable]]:
+             ranked: bool, humanoid: bool = False) -> list[tuple[str, callable]]:
+    """The text table's (header, row -> text) columns; ``humanoid``: the humanoid set's score (or n/a) in place
+    of the unseen grid's."""
     def iv(row: dict, key: str, name: str | None = None):
         value = row["scores"][key] if name is None else row["scores"][key].get(name)
         interval = row["intervals"][key] if name is None else row["intervals"][key].get(name)
@@ -175,18 +227,21 @@ def _columns(families: Sequence[str], backends: Sequence[str], pairs: Sequence[s
     columns = [("#", lambda r: (str(r["rank"]) + ("~" if r["tied_above"] else "")) if "rank" in r else "-")] if ranked else []
     columns += [
         ("name", lambda r: r["name"]),
-        ("policy", lambda r: r["policy"]),
+        ("policy", lambda r: r["policy"] + (" (simulator state)" if r["inputs"] == SIMULATOR_STATE else "")),
         ("protocol", lambda r: r["protocol_version"]),
         ("overall", lambda r: iv(r, "overall")),
     ]
     columns += [(f, lambda r, f=f: iv(r, "per_family", f)) for f in families]
     columns += [(b, lambda r, b=b: iv(r, "per_backend", b)) for b in backends]
-    columns += [
-    ]
     columns += [(f"gap {p}", lambda r, p=p: fmt_gap(signed_gap_of(r["intervals"], p))) for p in pairs]
+    if humanoid:
+        columns += [("humanoid set", lambda r: fmt_generalisation(r, "humanoids"))]
+    else:
+        columns += [
+            ("unseen", lambda r: fmt_generalisation(r, "unseen")),
+            ("matched-unseen", lambda r: fmt_generalisation(r, "gap")),
+        ]
     columns += [
-        ("unseen", lambda r: fmt_generalisation(r, "unseen")),
-        ("matched-unseen", lambda r: fmt_generalisation(r, "gap")),
         ("cells", lambda r: str(r["scores"]["cells"])),
         ("file", lambda r: "yes" if r["policy_file"] else "-"),
         ("verified", lambda r: fmt_verified(r["verified"])),
@@ -198,6 +253,9 @@ def _columns(families: Sequence[str], backends: Sequence[str], pairs: Sequence[s
 SECTION_TITLES = {
     "main": "Main board, protocol {version}: records covering the standard grid, ranked by mean success "
             "(~: its 95 % interval overlaps the record above)",
+    "humanoid": "Humanoid track, protocol {version}: records covering the humanoid grid, ranked on their own by mean "
+                "G1 success (~: its 95 % interval overlaps the record above; n/a: the humanoid set is not scored, "
+                "with the reason)",
     "partial": "Partial records, protocol {version} (not ranked against the main board)",
     "archived": "Archived: records of earlier protocol versions, ranked within their own version only "
                 "(never against protocol {version}), and records superseded by a re-score of the same policy file "
@@ -205,18 +263,21 @@ SECTION_TITLES = {
 }
 
 
-def render_table(records: Sequence[Mapping], **filters) -> str:
-    """A plain-text table per section; scores with their 95 % intervals."""
+def render_table(records: Sequence[Mapping], track: str | None = None, **filters) -> str:
+    """A plain-text table per section (or only the section ``track``: main, humanoid, partial, archived); scores
+    with their 95 % intervals."""
     data = board(records, **filters)
     shown = axes(records)
-    rows_all = data["main"] + data["partial"] + data["archived"]
+    rows_all = [row for section in SECTIONS for row in data[section]]
     families = [f for f in shown["families"] if any(f in r["scores"]["per_family"] for r in rows_all)] or list(STANDARD_TERRAINS)
     out = []
     if data["filters"]:
         out.append("filters: " + " ".join(f"{k}={v}" for k, v in data["filters"].items()))
-    for section in ("main", "partial", "archived"):
+    for section in SECTIONS if track is None else (track,):
         rows = data[section]
-        columns = _columns(families, shown["backends"], shown["pairs"], section != "partial")
+        humanoid = section == "humanoid"
+        chosen = [f for f in families if f in HUMANOID_TERRAINS] if humanoid else families
+        columns = _columns(chosen, shown["backends"], shown["pairs"], section != "partial", humanoid)
         out.append(f"{SECTION_TITLES[section].format(version=PROTOCOL_VERSION)} ({len(rows)} record{'s' if len(rows) != 1 else ''})")
         if not rows:
             out.append("  (none)")
@@ -228,6 +289,10 @@ def render_table(records: Sequence[Mapping], **filters) -> str:
             out.append("  ".join(v.rjust(w) if v[:1].isdigit() or v[:1] in "+-" else v.ljust(w)
                                  for v, w in zip(line, widths)).rstrip())
         out.append("")
+        if humanoid:
+            out += [f"  {r['name']}: humanoid set n/a: {r['humanoids_not_scored']}" for r in rows
+                    if r.get("humanoids_not_scored") and (r.get("generalisation") or {}).get("humanoids") is None]
+            out += [""] if out[-1] else []
     return "\n".join(out)
 
 
@@ -257,6 +322,7 @@ def page_data(records: Sequence[Mapping]) -> dict:
         **axes(records),
         "labels": BACKEND_LABELS,
         "standard": standard_text(),
+        "humanoid": {"text": humanoid_text(), "families": list(HUMANOID_TERRAINS)},
         "protocol": PROTOCOL_VERSION,
         "protocols": list(KNOWN_PROTOCOL_VERSIONS),
         "records": entries,

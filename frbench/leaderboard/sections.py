@@ -1,6 +1,6 @@
-"""Which section of the board a record belongs to: the ranked main board, the partial records, or the archive
-(records of other protocol versions, and records superseded by a canonical-joint-frame re-score of the same
-policy file), and what a record's policy read."""
+"""Which section of the board a record belongs to: the ranked main board, the ranked humanoid track, the partial
+records, or the archive (records of other protocol versions, and records superseded by a canonical-joint-frame
+re-score of the same policy file), and what a record's policy read."""
 
 from __future__ import annotations
 
@@ -30,12 +30,19 @@ def superseded(records: Sequence[Mapping]) -> dict[str, str]:
 
 
 def section_of(record: Mapping, replaced: Mapping[str, str] | None = None) -> str:
-    """``main`` / ``partial`` for records of the current protocol version, ``archived`` for any other version and
-    for a record ``replaced`` names (`superseded`). A policy that reads the simulator's state (`inputs_of`) is
-    never ranked with blind policies: ``partial``."""
+    """``main`` / ``humanoid`` / ``partial`` for records of the current protocol version (their track),
+    ``archived`` for any other version and for a record ``replaced`` names (`superseded`). A policy that reads
+    the simulator's state (`inputs_of`) is never ranked with blind policies on the main board: ``partial``; on
+    the humanoid track it is ranked, marked (docs/protocol.md, "The humanoid track")."""
     if record["results"]["protocol_version"] != PROTOCOL_VERSION or record.get("id") in (replaced or {}):
         return "archived"
+    if record["track"] == "humanoid":
+        return "humanoid"
     return "partial" if inputs_of(record) == SIMULATOR_STATE else record["track"]
+
+
+#: The board's sections, in the order it shows them.
+SECTIONS = ("main", "humanoid", "partial", "archived")
 
 
 #: ``results.policy.inputs`` of a policy that reads the acting simulator's full state (a planner such as ``mpc``).
