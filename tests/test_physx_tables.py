@@ -68,8 +68,8 @@ def test_per_record_gives_simulators_gaps_lowest_and_the_learned_records_line(tm
                                 .replace(",", "").split())
             assert low <= point <= high, cell
     assert out.strip().splitlines()[-1] == (
-        "Learned records (2): PyBullet − PhysX = +5.0 points on average; PhysX is lower in 1 of 2: "
-        "a policy trained in MuJoCo loses more in PhysX than in PyBullet.")
+        "Learned records (2): PyBullet − PhysX = +5.0 points on average; PhysX is lower beyond its interval in 1 "
+        "and higher in 0 of 2: a policy trained in MuJoCo loses more in PhysX than in PyBullet.")
 
 
 def test_results_without_physx_cells_are_a_one_line_error(tmp_path, capsys):
@@ -79,3 +79,18 @@ def test_results_without_physx_cells_are_a_one_line_error(tmp_path, capsys):
     assert main(["--per-record", str(path)]) == 2
     assert capsys.readouterr().err == ("physx_tables: two: no standard-grid cells in physx "
                                        "(protocol 1.3 results needed)\n")
+
+
+def test_the_answer_names_a_direction_only_when_the_separating_records_agree():
+    from tools.physx_tables import physx_against_pybullet
+
+    def summary(gap):  # PyBullet − PhysX as [point, low, high]
+        return {"learned": True, "gaps": {"pybullet-physx": gap}}
+
+    mixed = [summary([0.03, 0.01, 0.05]), summary([-0.02, -0.04, -0.01]), summary([0.005, -0.01, 0.02])]
+    assert physx_against_pybullet(mixed) == (
+        "Learned records (3): PyBullet − PhysX = +0.5 points on average; PhysX is lower beyond its interval in 1 "
+        "and higher in 1 of 3: a policy trained in MuJoCo does not lose consistently more in either.")
+    higher = [summary([-0.02, -0.04, -0.01]), summary([0.01, -0.01, 0.03])]
+    assert physx_against_pybullet(higher).endswith("higher in 1 of 2: a policy trained in MuJoCo loses less in "
+                                                   "PhysX than in PyBullet.")

@@ -7,8 +7,8 @@ Reads ``frbench evaluate`` results files, or with ``--board`` the main-board rec
   grid's cells of that family and level;
 * ``--per-record``: for each results file or record, the standard grid's success per simulator, the three
   signed pairwise gaps (first − second, points) and the simulator it scores lowest in; then one line on the
-  learned records (``results.policy.sha256`` set): the mean of PyBullet − PhysX and in how many PhysX is lower,
-  i.e. whether a policy trained in MuJoCo loses more in PhysX than in PyBullet.
+  learned records (``results.policy.sha256`` set): the mean of PyBullet − PhysX, in how many its interval lies
+  wholly on either side of 0, i.e. whether a policy trained in MuJoCo loses more in PhysX than in PyBullet.
 
 Every success is a mean of cell success rates with its 95 % stratified-bootstrap interval, computed by
 `frbench.leaderboard.scores` as the board computes it::
@@ -103,16 +103,24 @@ def per_record_table(summaries: Sequence[Mapping]) -> str:
 
 def physx_against_pybullet(summaries: Sequence[Mapping]) -> str:
     """Whether a policy trained in MuJoCo loses more in PhysX than in PyBullet, from the learned records: the mean
-    over them of PyBullet − PhysX (points) and the number of records where PhysX is lower."""
+    over them of PyBullet − PhysX (points), the records whose 95 % interval of that gap lies wholly above 0 (PhysX
+    lower) or wholly below 0 (PhysX higher), and the answer: a direction only when the records that separate the
+    two engines all point one way."""
     learned = [s for s in summaries if s["learned"]]
     if not learned:
         return "Learned records: none among these, so no PhysX − PyBullet comparison."
-    drops = [s["per_simulator"]["pybullet"][0] - s["per_simulator"]["physx"][0] for s in learned]
-    lower = sum(d > 0 for d in drops)
-    mean = 100 * math.fsum(drops) / len(drops)
-    answer = "more in PhysX" if mean > 0 else "not more in PhysX"
+    gaps = [s["gaps"]["pybullet-physx"] for s in learned]
+    mean = 100 * math.fsum(g[0] for g in gaps) / len(gaps)
+    lower, higher = sum(g[1] > 0 for g in gaps), sum(g[2] < 0 for g in gaps)
+    if lower and not higher and mean > 0:
+        answer = "loses more in PhysX than in PyBullet"
+    elif higher and not lower and mean < 0:
+        answer = "loses less in PhysX than in PyBullet"
+    else:
+        answer = "does not lose consistently more in either"
     return (f"Learned records ({len(learned)}): PyBullet − PhysX = {mean:+.1f} points on average; PhysX is lower "
-            f"in {lower} of {len(learned)}: a policy trained in MuJoCo loses {answer} than in PyBullet.")
+            f"beyond its interval in {lower} and higher in {higher} of {len(learned)}: a policy trained in MuJoCo "
+            f"{answer}.")
 
 
 def load_inputs(args: argparse.Namespace) -> list[tuple[str, Mapping]]:
