@@ -15,13 +15,14 @@ import statistics
 from pathlib import Path
 from typing import Callable, Sequence
 
+from frbench.evaluation.results import sim_to_sim
 from frbench.tasks.protocol import (
     PROTOCOL_VERSION,
-    STANDARD_BACKENDS,
     STANDARD_LEVELS,
     STANDARD_ROBOTS,
     STANDARD_SEEDS,
     STANDARD_TERRAINS,
+    grid_backends,
 )
 
 SuccessFn = Callable[[str, str, str, int, int, int], bool]
@@ -40,7 +41,7 @@ def _default_success(skill: float, salt: int) -> SuccessFn:
 def make_results(
     *,
     robots: Sequence[str] = STANDARD_ROBOTS,
-    backends: Sequence[str] = STANDARD_BACKENDS,
+    backends: Sequence[str] | None = None,
     terrains: Sequence[str] = STANDARD_TERRAINS,
     levels: Sequence[int] = STANDARD_LEVELS,
     seeds: Sequence[int] = STANDARD_SEEDS,
@@ -51,16 +52,21 @@ def make_results(
     success: SuccessFn | None = None,
     checkpoint: str | None = None,
     unseen: bool | None = None,
+    protocol_version: str = PROTOCOL_VERSION,
 ) -> dict:
     """A complete, self-consistent results object. ``unseen`` (default: when the axes are the standard grid's) adds
     protocol 1.2's unseen grid (`frbench.evaluation.grids`): the results then hold both grids' cells, as
-    ``frbench evaluate --grid standard,unseen`` writes them."""
+    ``frbench evaluate --grid standard,unseen`` writes them. ``backends`` default to the grid simulators of
+    ``protocol_version`` (the current protocol's), which the results carry."""
+    grid_simulators = grid_backends(protocol_version)
+    backends = grid_simulators if backends is None else backends
     standard = (tuple(robots), tuple(backends), tuple(terrains), tuple(levels), tuple(seeds)) == (
-        STANDARD_ROBOTS, STANDARD_BACKENDS, STANDARD_TERRAINS, STANDARD_LEVELS, STANDARD_SEEDS)
+        STANDARD_ROBOTS, grid_simulators, STANDARD_TERRAINS, STANDARD_LEVELS, STANDARD_SEEDS)
     if unseen if unseen is not None else standard:
         return _with_unseen_grid(make_results(robots=robots, backends=backends, terrains=terrains, levels=levels,
                                               seeds=seeds, episodes=episodes, policy=policy, skill=skill, salt=salt,
-                                              success=success, checkpoint=checkpoint, unseen=False), standard, skill)
+                                              success=success, checkpoint=checkpoint, unseen=False,
+                                              protocol_version=protocol_version), standard, skill)
     success = success or _default_success(skill, salt)
     cells, records = [], []
     for robot in robots:
@@ -99,30 +105,22 @@ def make_results(
                             "diverged": 0,
                         })
                         records.extend(eps)
-    summary, means = [], {}
+    summary = []
     for robot in robots:
         for backend in backends:
             for terrain in terrains:
                 for level in levels:
                     rates = [c["success_rate"] for c in cells
                              if (c["robot"], c["backend"], c["terrain"], c["level"]) == (robot, backend, terrain, level)]
-                    means[(robot, backend, terrain, level)] = sum(rates) / len(rates)
                     summary.append({
                         "robot": robot, "backend": backend, "terrain": terrain, "level": level,
                         "success_rate_mean": sum(rates) / len(rates),
                         "success_rate_std": statistics.pstdev(rates),
                         "n_seeds": len(rates),
                     })
-    sim_to_sim = []
-    if "mujoco" in backends and "pybullet" in backends:
-        for robot in robots:
-            for terrain in terrains:
-                for level in levels:
-                    m, p = means[(robot, "mujoco", terrain, level)], means[(robot, "pybullet", terrain, level)]
-                    sim_to_sim.append({"robot": robot, "terrain": terrain, "level": level, "mujoco": m, "pybullet": p, "gap": m - p})
     return {
         "schema_version": 1,
-        "protocol_version": PROTOCOL_VERSION,
+        "protocol_version": protocol_version,
         "frbench": {"version": "0.1.0", "git_commit": "0123456789abcdef0123456789abcdef01234567", "git_dirty": False},
         "versions": {"python": "3.11.7", "mujoco": "4.0.0", "pybullet": "3.2.7", "pinocchio": "4.1.0",
                      "numpy": "2.4.6", "torch": "2.13.0+cpu"},
@@ -136,7 +134,7 @@ def make_results(
         "cells": cells,
         "episodes": records,
         "summary": summary,
-        "sim_to_sim": sim_to_sim,
+        "sim_to_sim": sim_to_sim(summary),  # each grid simulator's mean and each pair's gap
     }
 
 
@@ -145,11 +143,12 @@ def _with_unseen_grid(results: dict, named: bool = True, skill: float = 0.8) -> 
     standard grid's, so the config names both grids (else it only lists the robots, as a custom grid would)."""
     from frbench.evaluation.grids import unseen_part
 
-    part = unseen_part()
+    version = results["protocol_version"]
+    part = unseen_part(version=version)
     config = results["config"]
     extra = make_results(robots=part.robots, backends=part.backends, terrains=part.terrains, levels=part.levels,
                          seeds=part.seeds, episodes=config["episodes"], policy=config["policy"],
-                         skill=skill, salt=hash_salt(results), unseen=False)
+                         skill=skill, salt=hash_salt(results), unseen=False, protocol_version=version)
     merged = dict(results)
     for key in ("cells", "episodes", "summary", "sim_to_sim"):
         merged[key] = results[key] + extra[key]
@@ -187,7 +186,8 @@ def small_results(**overrides) -> dict:
     stairs 0.3125, mujoco 0.625, pybullet 0.5, sim-to-sim gap 0.125.
     """
     args = dict(
-        robots=("go2",), terrains=("flat", "stairs"), levels=(1, 5), seeds=(0, 1), episodes=4,
+        robots=("go2",), backends=("mujoco", "pybullet"), terrains=("flat", "stairs"), levels=(1, 5), seeds=(0, 1),
+        episodes=4,
         success=lambda robot, backend, terrain, level, seed, episode: episode < SMALL_SUCCESSES[(backend, terrain, level)],
     )
     args.update(overrides)

@@ -20,10 +20,10 @@ from frbench.leaderboard.verify import verify
 from frbench.tasks.protocol import PROTOCOL_VERSION
 
 BOARD = Path(__file__).resolve().parents[1] / "leaderboard"
-#: The main board's records under protocol 1.2: the re-score of every 1.1 main-board record, its 16 learned
-#: policies re-scored once more in the canonical joint frame (which supersedes their robot-frame records).
+#: The main board's records under protocol 1.3: each 1.2 main-board record's episodes with its PhysX cells
+#: (tools/rescore_physx.py); no 1.3 record ran a learned policy in the robot's own joint frame.
 EXPECTED_MAIN_RECORDS = 17
-EXPECTED_SUPERSEDED = 16
+EXPECTED_SUPERSEDED = 0
 SAMPLE = 4
 
 

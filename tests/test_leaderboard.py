@@ -148,7 +148,7 @@ def test_scores_are_recomputed_from_cells():
 def test_standard_grid_is_the_main_track_and_extra_cells_do_not_count(full):
     record = build_record(full, _fields(full))
     assert record["track"] == "main"
-    assert record["scores"]["cells"] == 5 * 2 * 7 * 3 * 4
+    assert record["scores"]["cells"] == 5 * 3 * 7 * 3 * 4  # three simulators (protocol 1.3)
     assert sorted(record["scores"]["per_family"]) == sorted(["flat", "rough", "slopes", "stairs", "stones", "gaps", "beams"])
     rates = [c["success_rate"] for c in full["cells"] if c["robot"] in STANDARD_ROBOTS]
     assert record["scores"]["overall"] == pytest.approx(sum(rates) / len(rates), abs=1e-12)
@@ -156,15 +156,15 @@ def test_standard_grid_is_the_main_track_and_extra_cells_do_not_count(full):
     bigger = make_results(robots=(*STANDARD_ROBOTS, "anymal_like"), episodes=3, unseen=True)
     big = build_record(bigger, _fields(bigger))
     assert big["track"] == "main"
-    assert big["scores"]["cells"] == 840 and "anymal_like" not in big["scores"]["per_robot"]
+    assert big["scores"]["cells"] == 1260 and "anymal_like" not in big["scores"]["per_robot"]
     # missing one seed: partial
     fewer = make_results(seeds=(0, 1, 2), episodes=1)
     assert build_record(fewer, _fields(fewer))["track"] == "partial"
-    assert main_track_shortfall(fewer["cells"]) == "210 of the standard grid's 840 cells are missing"
+    assert main_track_shortfall(fewer["cells"]) == "315 of the standard grid's 1260 cells are missing"
     # every standard cell present but with fewer than STANDARD_EPISODES episodes: partial
     thin = make_results(episodes=STANDARD_EPISODES - 1)
     assert build_record(thin, _fields(thin))["track"] == "partial"
-    assert main_track_shortfall(thin["cells"]) == f"840 standard cells have fewer than {STANDARD_EPISODES} episodes"
+    assert main_track_shortfall(thin["cells"]) == f"1260 standard cells have fewer than {STANDARD_EPISODES} episodes"
     assert main_track_shortfall(full["cells"]) is None
 
 
@@ -376,7 +376,7 @@ def test_submit_writes_a_record_and_regenerates_the_board(root, tmp_path, capsys
     assert (status, err) == (0, "")
     rid = record_id(results)
     assert out.startswith(f"added record {rid[:12]} (go2-scripted, partial track): overall success 0.563, sim-to-sim gap 0.125, 16 cells\n"
-                          "partial, not ranked on the main board: 824 of the standard grid's 840 cells are missing\n")
+                          "partial, not ranked on the main board: 1244 of the standard grid's 1260 cells are missing\n")
     assert [p.name for p in records_in(root)] == [f"{rid}.json.gz"]
     stored = (root / "records" / f"{rid}.json.gz").read_bytes()
     assert stored[:2] == b"\x1f\x8b" and stored[4:8] == b"\0\0\0\0"  # gzip, modification time 0: deterministic
@@ -509,14 +509,14 @@ def test_table_ranks_main_records_and_lists_partial_ones(populated, capsys):
     status, out, _ = cli(capsys, "leaderboard", "--root", populated)
     assert status == 0
     lines = out.splitlines()
-    assert lines[0] == ("Main board, protocol 1.2: records covering the standard grid, ranked by mean success "
+    assert lines[0] == ("Main board, protocol 1.3: records covering the standard grid, ranked by mean success "
                         "(~: its 95 % interval overlaps the record above) (2 records)")
-    assert lines[2].split()[:4] == ["1", "ppo-best", "ppo", "1.2"]
-    assert lines[3].split()[:4] == ["2", "baseline", "scripted", "1.2"]
+    assert lines[2].split()[:4] == ["1", "ppo-best", "ppo", "1.3"]
+    assert lines[3].split()[:4] == ["2", "baseline", "scripted", "1.3"]
     tiny = next(line for line in lines if line.startswith("tiny ")).split()
     assert tiny[3] == "0.563" and tiny[5] == "0.813" and tiny[7] == "-"  # ties round up, as in the page; overall, flat, rough
     assert tiny[4].startswith("(") and tiny[4].endswith(")")  # the interval beside the score
-    assert "Partial records, protocol 1.2 (not ranked against the main board) (1 record)" in lines
+    assert "Partial records, protocol 1.3 (not ranked against the main board) (1 record)" in lines
 
 
 def test_json_output_and_filters(populated, capsys):
@@ -586,9 +586,9 @@ def test_check_reports_stale_and_invalid_files(populated, capsys):
     write(record, original.replace('"description": ""', '"description": "<script>alert(1)</script>"', 1))
     status, _, err = cli(capsys, "leaderboard", "--check", "--root", populated)
     assert status == 1 and f"{record}: submission.description: '<script>" in err
-    write(record, original.replace('"protocol_version": "1.2"', '"protocol_version": "0.9"', 1))
+    write(record, original.replace('"protocol_version": "1.3"', '"protocol_version": "0.9"', 1))
     status, _, err = cli(capsys, "leaderboard", "--check", "--root", populated)
-    assert status == 1 and f"{record}: results.protocol_version: unknown protocol version '0.9'; known: 1.0, 1.1, 1.2" in err
+    assert status == 1 and f"{record}: results.protocol_version: unknown protocol version '0.9'; known: 1.0, 1.1, 1.2, 1.3" in err
     write(record, original.replace('"created": "2026-11-22T01:23:45Z"', '"created": "2026-11-22T01:23:46Z"', 1))
     status, _, err = cli(capsys, "leaderboard", "--check", "--root", populated)
     assert status == 1 and f"{record}: id: {rid} is not the sha256 of the record's results (" in err
@@ -706,13 +706,12 @@ def test_validator_messages():
 
 def test_records_of_another_protocol_version_are_archived_not_ranked(tmp_path, capsys):
     root = empty_board_copy(REPO_BOARD, tmp_path / "leaderboard")
-    old = make_results(episodes=3, skill=0.95, salt=3)
-    old["protocol_version"] = "1.0"
+    old = make_results(episodes=3, skill=0.95, salt=3, protocol_version="1.0")
     lb.submit(write_results(tmp_path / "old.json", old), root, name="old-but-better")
     lb.submit(write_results(tmp_path / "new.json", make_results(episodes=3, skill=0.5, salt=4)), root, name="current")
     status, out, _ = cli(capsys, "leaderboard", "--root", root, "--format", "json")
     data = json.loads(out)
-    assert status == 0 and data["protocol_version"] == "1.2"
+    assert status == 0 and data["protocol_version"] == "1.3"
     assert [r["name"] for r in data["main"]] == ["current"] and data["main"][0]["rank"] == 1
     assert [r["name"] for r in data["archived"]] == ["old-but-better"]
     assert data["archived"][0]["rank"] == 1 and data["archived"][0]["protocol_version"] == "1.0"  # within 1.0 only

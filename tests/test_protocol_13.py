@@ -76,9 +76,9 @@ def _copy_with(results: dict, edit) -> dict:
 
 
 def test_grid_simulators_per_protocol_version():
-    assert PROTOCOL_VERSION == "1.2" and "1.3" in KNOWN_PROTOCOL_VERSIONS
-    assert grid_backends("1.2") == ("mujoco", "pybullet") == grid_backends("1.1") == grid_backends()
-    assert grid_backends("1.3") == THREE
+    assert PROTOCOL_VERSION == "1.3" and "1.3" in KNOWN_PROTOCOL_VERSIONS
+    assert grid_backends("1.2") == ("mujoco", "pybullet") == grid_backends("1.1")
+    assert grid_backends("1.3") == THREE == grid_backends()
 
 
 def test_grid_cell_counts_per_protocol_version():
@@ -99,7 +99,7 @@ def test_grid_cell_counts_per_protocol_version():
 @pytest.fixture(scope="module")
 def complete_12() -> dict:
     """A protocol 1.2 main-track results object: the standard and unseen grids in MuJoCo and PyBullet."""
-    return make_results(episodes=3)
+    return make_results(episodes=3, protocol_version="1.2")
 
 
 def test_a_complete_12_record_lacks_its_physx_cells_under_13(complete_12):

@@ -71,7 +71,7 @@ def test_the_unseen_quadrupeds_span_9_to_50_kg_and_their_masses_are_the_files():
 
 
 def test_the_unseen_grid_is_576_cells_and_its_worst_case_interval_is_within_2_5_points():
-    part = unseen_part()
+    part = unseen_part(version="1.2")  # two simulators; 1.3's three: tests/test_protocol_13.py
     keys = part.keys()
     assert len(keys) == 9 * 2 * 4 * 2 * 4 == 576 and part.episodes == protocol.UNSEEN_EPISODES == 3
     assert part.terrains == ("flat", "rough", "slopes", "stairs") and part.levels == (1, 5)
@@ -85,14 +85,15 @@ def test_the_unseen_grid_is_576_cells_and_its_worst_case_interval_is_within_2_5_
 
 
 def test_grids_resolve_per_policy_and_humanoids_are_not_scored_for_a_quadruped_policy():
-    resolved = resolve_grids(["standard", "unseen"], lambda name: get_robot(name).kind == "quadruped")
+    resolved = resolve_grids(["standard", "unseen"], lambda name: get_robot(name).kind == "quadruped", "1.2")
     assert len(resolved.keys) == 840 + 576
     assert set(resolved.not_scored) == {"icub", "talos"}
-    both = resolve_grids(["unseen"], lambda name: True)
+    both = resolve_grids(["unseen"], lambda name: True, "1.2")
     assert len(both.keys) == 576 + 2 * 2 * 4 * 2 * 4 and not both.not_scored
+    assert len(resolve_grids(["standard", "unseen"], lambda name: True).keys) == (840 + 576 + 128) * 3 // 2  # 1.3
     request = EvaluationRequest(policy="scripted", grid=["unseen"])
     validate(request)
-    assert len(request.cells()) == 576 and request.robots == [r.name for r in UNSEEN_QUADRUPEDS]
+    assert len(request.cells()) == 864 and request.robots == [r.name for r in UNSEEN_QUADRUPEDS]
     assert expected_cell_keys({"grid": ["unseen"], "robots": request.robots}) == set(unseen_part().keys())
 
 
@@ -103,13 +104,13 @@ def test_results_name_their_grid_and_a_1_2_record_needs_the_unseen_grid_to_be_ma
 
     both = make_results(episodes=3, skill=0.5, salt=2)
     check_results(both)
-    assert both["protocol_version"] == "1.2" and both["config"]["grid"] == ["standard", "unseen"]
+    assert both["protocol_version"] == "1.3" and both["config"]["grid"] == ["standard", "unseen"]
     record = build_record(both, submission_fields(both, name="x", description="", submitter="a", link=None,
                                                    submitted="2026-01-01T00:00:00Z"))
-    assert record["track"] == "main" and record["scores"]["unseen"]["cells"] == 576
+    assert record["track"] == "main" and record["scores"]["unseen"]["cells"] == 864  # three simulators
     matched = [c["success_rate"] for c in both["cells"] if c["robot"] in protocol.STANDARD_ROBOTS
                and c["terrain"] in protocol.UNSEEN_TERRAINS and c["level"] in protocol.UNSEEN_LEVELS]
-    assert len(matched) == 5 * 2 * 4 * 2 * 4
+    assert len(matched) == 5 * 3 * 4 * 2 * 4
     assert record["scores"]["generalisation_gap"] == pytest.approx(
         sum(matched) / len(matched) - record["scores"]["unseen"]["overall"])
     standard_only = make_results(episodes=3, skill=0.5, salt=2, unseen=False)
@@ -144,7 +145,7 @@ def test_evaluate_grid_unseen_writes_the_grid_into_the_results(tmp_path, capsys,
     captured = capsys.readouterr()
     assert status == 0, captured.err
     results = json.loads(out.read_text())
-    assert results["protocol_version"] == "1.2" and results["config"]["grid"] == ["unseen"]
+    assert results["protocol_version"] == "1.3" and results["config"]["grid"] == ["unseen"]
     assert list(results["config"]["not_scored"]) == ["icub"] and "robot 'icub' of the grid is not scored" in captured.err
     assert [(c["robot"], c["episodes"]) for c in results["cells"]] == [("a1", 2)]
     assert results["robots"]["a1"]["source"] == "example-robot-data: a1_description/urdf/a1.urdf"
@@ -173,7 +174,7 @@ def test_the_board_shows_standard_and_unseen_with_the_gap_and_ranks_by_unseen(tm
         assert g["unseen"][1] < g["unseen"][0] < g["unseen"][2]
         assert g["gap"][0] == pytest.approx(g["matched"][0] - g["unseen"][0])
     readme = (root / "README.md").read_text()
-    assert "### Ranked by unseen success (protocol 1.2)" in readme and "| Unseen | Matched − unseen | Humanoids |" in readme
+    assert "### Ranked by unseen success (protocol 1.3)" in readme and "| Unseen | Matched − unseen | Humanoids |" in readme
     assert readme.count("| n/a |") >= 4  # the humanoid column of both tables, both records
     entries = {e["name"]: e for e in page_data(load_records(root))["records"]}
     assert entries["strong"]["generalisation"]["unseen"] == ranking[0]["unseen"]

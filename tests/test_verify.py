@@ -264,7 +264,7 @@ def test_records_of_another_protocol_are_caught(capsys, root, tmp_path, policies
     labelled["protocol_version"] = "1.0"
     path = submitted(capsys, root, tmp_path, labelled, policies["frnet-3m"])
     status, out, _ = verify(capsys, path)
-    assert status == 1 and "ran under protocol 1.0, this frbench runs protocol 1.2" in out
+    assert status == 1 and "ran under protocol 1.0, this frbench runs protocol 1.3 and reproduces episodes from 1.2 on" in out
     # episodes judged by other rules (standing at 30 % of the nominal height, not 75 %), labelled with this protocol
     import frbench.tasks.success as success
 
@@ -354,3 +354,9 @@ def test_a_python_file_policy_is_attached_and_re_run_by_its_attribute(capsys, ro
     assert load_record(path)["policy_file"]["file"].endswith(".py")
     status, out, _ = verify(capsys, path)
     assert status == 0 and "policy: attached" in out and out.count(".py:Zero") == 1, out
+
+
+def test_records_from_1_2_on_are_reproducible_and_earlier_or_later_ones_are_not():
+    from frbench.leaderboard.verify import reproducible
+
+    assert [reproducible(v) for v in ("1.0", "1.1", "1.2", "1.3", "1.4")] == [False, False, True, True, False]

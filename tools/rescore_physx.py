@@ -46,6 +46,8 @@ from rescore import (  # noqa: E402
 DEFAULT_OUT = ROOT / "runs" / "rescore-1.3"
 #: The protocol the re-scored records are for, and the simulator it adds to the grids.
 TARGET_PROTOCOL = "1.3"
+#: The protocol of the records it re-scores.
+SOURCE_PROTOCOL = "1.2"
 SIMULATOR = "physx"
 GRIDS = ("standard", "unseen")
 #: The simulators whose episodes a 1.3 record takes unchanged from its 1.2 record.
@@ -58,16 +60,16 @@ def description_suffix(record: str) -> str:
 
 
 def main_board(board: Path) -> list[dict]:
-    """The records the board ranks on its main board now (`frbench.leaderboard.sections`), best first, without the
-    ones that already hold PhysX cells."""
+    """The records of protocol 1.2's main board (`SOURCE_PROTOCOL`: main track, not superseded by a canonical-frame
+    re-score), best first, without the ones that already hold PhysX cells."""
     from frbench.leaderboard.records import load_records
     from frbench.leaderboard.scores import rank_key
-    from frbench.leaderboard.sections import section_of, superseded
+    from frbench.leaderboard.sections import superseded
 
     records = load_records(board)
     replaced = superseded(records)
-    chosen = [r for r in records if section_of(r, replaced) == "main"
-              and not any(c["backend"] == SIMULATOR for c in r["results"]["cells"])]
+    chosen = [r for r in records if r["results"]["protocol_version"] == SOURCE_PROTOCOL and r["track"] == "main"
+              and r["id"] not in replaced and not any(c["backend"] == SIMULATOR for c in r["results"]["cells"])]
     return sorted(chosen, key=lambda r: rank_key(r["scores"], r["submission"]["submitted"], r["id"]))
 
 

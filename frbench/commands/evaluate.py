@@ -27,7 +27,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     d = EvaluationRequest()
     p = sub.add_parser("evaluate", help="score a recovery policy in MuJoCo and PyBullet",
-                       description="With no arguments: the best shipped policy on Go2, both backends, every terrain.")
+                       description="With no arguments: the best shipped policy on Go2, in MuJoCo, PyBullet and PhysX, every terrain.")
     p.add_argument("--policy", default=d.policy, help=f"policy name, checkpoint file, run folder, ONNX or TorchScript "
                    f"file, Stable-Baselines3 zip, module:attr or file.py:attr (see `frbench policies --help`; "
                    f"default {d.policy})")
@@ -38,8 +38,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "576 cells, + the humanoid set for a humanoid policy), standard,unseen, or humanoid (protocol 1.3 on: the G1, 144 "
                    "cells, + the humanoid set; docs/protocol.md)")
     p.add_argument("--robots", type=_list, default=None, help="comma-separated robot names or URDF paths (default go2)")
-    p.add_argument("--backends", type=_list, default=None, help="mujoco,pybullet (mujoco-warp with the gpu extra, physx "
-                   "with the physx extra)")
+    p.add_argument("--backends", type=_list, default=None, help="default mujoco,pybullet,physx (physx with the physx extra, "
+                   "which make install installs; mujoco-warp with the gpu extra)")
     p.add_argument("--terrains", type=_list, default=None, help="terrain families (default: all seven)")
     p.add_argument("--levels", type=_ints, default=None, help="difficulty levels 1-10 (default 1,5,10)")
     p.add_argument("--seeds", type=_ints, default=None, help="evaluation seeds (default 0,1)")

@@ -25,7 +25,7 @@ from frbench.io import sha256_file
 from frbench.policies.registry import load_policy
 from frbench.robots import get_robot
 from frbench.robots.sim_urdf import sim_robot_file
-from frbench.tasks.protocol import KNOWN_PROTOCOL_VERSIONS, PROTOCOL_VERSION, RESULTS_SCHEMA_VERSION
+from frbench.tasks.protocol import KNOWN_PROTOCOL_VERSIONS, PROTOCOL_VERSION, RESULTS_SCHEMA_VERSION, STANDARD_BACKENDS
 from frbench.terrains import FAMILIES
 
 
@@ -39,7 +39,8 @@ class EvaluationRequest:
 
     policy: str = "scripted"
     robots: list[str] = field(default_factory=lambda: ["go2"])
-    backends: list[str] = field(default_factory=lambda: ["mujoco", "pybullet"])
+    #: The simulators: by default the current protocol's grid simulators (MuJoCo, PyBullet and PhysX from 1.3 on).
+    backends: list[str] = field(default_factory=lambda: list(STANDARD_BACKENDS))
     terrains: list[str] = field(default_factory=lambda: ["flat", "rough", "slopes", "stairs", "stones", "gaps", "beams"])
     levels: list[int] = field(default_factory=lambda: [1, 5, 10])
     seeds: list[int] = field(default_factory=lambda: [0, 1])

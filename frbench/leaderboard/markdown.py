@@ -94,6 +94,23 @@ def humanoid_section(rows: Sequence[Mapping], families: Sequence[str], backends:
     return lines + [""]
 
 
+#: Protocol version -> (number of records, the commit that holds them): records that left the tree because a later
+#: protocol's records hold every one of their episodes (each of those names its source in ``reused``).
+RECORDS_ELSEWHERE: dict[str, tuple[int, str]] = {}
+
+
+def records_elsewhere_text() -> list[str]:
+    """The README's lines on the records that left the tree (`RECORDS_ELSEWHERE`)."""
+    lines = []
+    for version, (count, commit) in RECORDS_ELSEWHERE.items():
+        lines += [f"Protocol {version}'s {count} records are not in this tree: each of its main-board records was",
+                  "re-scored under a later protocol whose record holds its episodes unchanged and names it (`reused`:",
+                  f"its id and the sha256 of those episodes). Commit {commit} holds them",
+                  f"(`git checkout {commit[:12]} -- leaderboard/records/<id>.json.gz` restores one; `frbench verify`",
+                  "re-runs it).", ""]
+    return lines
+
+
 def render_markdown(records: Sequence[Mapping]) -> str:
     """``leaderboard/README.md``."""
     data = board(records)
@@ -201,10 +218,11 @@ def render_markdown(records: Sequence[Mapping]) -> str:
         "Records evaluated under an earlier protocol. Their numbers mean something else (docs/protocol.md lists",
         f"what changed), so they are never ranked against protocol {PROTOCOL_VERSION}; records that covered that",
         "version's standard grid are ranked among themselves (`~`: interval overlaps the one above), the rest (`-`) not.",
-        f"A protocol {PROTOCOL_VERSION} record *superseded by* another ran a learned policy in each robot's own joint",
-        "convention; the record named re-scores the same policy file in the canonical joint frame (docs/protocol.md,",
-        "\"The joint frame\"). Each record id keeps meaning its own results.",
+        "A record *superseded by* another ran a learned policy in each robot's own joint convention; the record",
+        "named re-scores the same policy file in the canonical joint frame (docs/protocol.md, \"The joint frame\").",
+        "Each record id keeps meaning its own results.",
         "",
+        *records_elsewhere_text(),
     ]
     lines += table(data["archived"], True, protocol=True)
     if any((row.get("verified") or {}).get("processor_bound") for row in data["archived"]):

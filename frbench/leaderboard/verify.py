@@ -53,7 +53,7 @@ from frbench.leaderboard.policy_files import stored_problems
 from frbench.policies.registry import BUILTIN_POLICIES, SHIPPED_CHECKPOINTS, shipped_checkpoint
 from frbench.robots import get_robot
 from frbench.robots.sim_urdf import sim_robot_file
-from frbench.tasks.protocol import CONTROL_DT, PROTOCOL_VERSION
+from frbench.tasks.protocol import CONTROL_DT, PROTOCOL_VERSION, REPRODUCED_FROM, version_key
 
 #: Relative tolerance on continuous episode metrics when library versions differ (mode ``tolerance``).
 RELATIVE_TOLERANCE = 1e-3
@@ -256,6 +256,12 @@ def _describe(episode: dict) -> str:
     return " ".join(str(episode[k]) for k in CELL_FIELDS[:3]) + f" level {episode['level']} seed {episode['seed']} episode {episode['episode']}"
 
 
+def reproducible(version: str) -> bool:
+    """Whether this code reproduces the episodes of a record of protocol ``version``: from `REPRODUCED_FROM` up
+    to the current protocol."""
+    return version_key(REPRODUCED_FROM) <= version_key(version) <= version_key(PROTOCOL_VERSION)
+
+
 def verify(record: dict, root: Path, *, sample: int = 8, seed: int = 0, tolerance: bool = False,
            progress=None) -> Verification:
     """Re-run ``sample`` of the (already checked) ``record``'s episodes and compare them."""
@@ -263,9 +269,10 @@ def verify(record: dict, root: Path, *, sample: int = 8, seed: int = 0, toleranc
     report = Verification(record["id"], results["protocol_version"], seed)
     episodes = results["episodes"]
     indices = sample_indices(len(episodes), sample, seed)
-    if results["protocol_version"] != PROTOCOL_VERSION:
+    if not reproducible(results["protocol_version"]):
         report.failures.append(
-            f"the record ran under protocol {results['protocol_version']}, this frbench runs protocol {PROTOCOL_VERSION}: "
+            f"the record ran under protocol {results['protocol_version']}, this frbench runs protocol {PROTOCOL_VERSION} "
+            f"and reproduces episodes from {REPRODUCED_FROM} on: "
             f"its episodes cannot be reproduced here (verify it with frbench at commit {results['frbench']['git_commit'][:12]})"
         )
         return report

@@ -9,12 +9,14 @@ from __future__ import annotations
 
 from frbench.control import CONTROL_DT  # noqa: F401  (the control period [s] is part of the protocol)
 
-#: The protocol this code implements.
-PROTOCOL_VERSION = "1.2"
-#: Every protocol version whose results the leaderboard accepts. 1.3 (the grids in three simulators, PhysX added;
-#: docs/protocol.md, "Protocol 1.3") is defined and checked here; it becomes `PROTOCOL_VERSION`, in one change with
-#: the re-scored records, when every main-board record has its PhysX cells (tools/rescore_physx.py).
+#: The protocol this code implements: 1.3, the grids in three simulators (PhysX added; docs/protocol.md,
+#: "Protocol 1.3").
+PROTOCOL_VERSION = "1.3"
+#: Every protocol version whose results the leaderboard accepts.
 KNOWN_PROTOCOL_VERSIONS = ("1.0", "1.1", "1.2", "1.3")
+#: The earliest protocol whose episodes this code reproduces (`frbench verify`): 1.3 added PhysX cells and the
+#: humanoid grid and changed no MuJoCo or PyBullet episode of 1.2; 1.2 changed learned policies' inference.
+REPRODUCED_FROM = "1.2"
 #: The first protocol whose grids hold PhysX cells.
 PHYSX_PROTOCOL = "1.3"
 #: The version in the starts' random key (`frbench.tasks.initial_states.episode_rng`): 1.2 changed no start, so it
