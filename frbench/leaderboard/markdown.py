@@ -94,21 +94,20 @@ def humanoid_section(rows: Sequence[Mapping], families: Sequence[str], backends:
     return lines + [""]
 
 
-#: Protocol version -> (number of records, the commit that holds them): records that left the tree because a later
-#: protocol's records hold every one of their episodes (each of those names its source in ``reused``).
-RECORDS_ELSEWHERE: dict[str, tuple[int, str]] = {}
+#: Records that left the tree: protocol version -> (what they were, the commit that holds them). A later protocol's
+#: records hold every episode of the ranked ones and name them (``reused``).
+RECORDS_ELSEWHERE: dict[str, tuple[str, str]] = {
+    "1.2": ("33 records (its 17 ranked records, whose 1.3 re-scores hold their MuJoCo and PyBullet episodes "
+            "unchanged and name them in `reused` with the sha256 of those episodes, and the 16 robot-frame records "
+            "their canonical-frame re-scores superseded)", "7ab8799a8e21ad731d33cd1cfd20301f483550f9"),
+}
 
 
 def records_elsewhere_text() -> list[str]:
     """The README's lines on the records that left the tree (`RECORDS_ELSEWHERE`)."""
-    lines = []
-    for version, (count, commit) in RECORDS_ELSEWHERE.items():
-        lines += [f"Protocol {version}'s {count} records are not in this tree: each of its main-board records was",
-                  "re-scored under a later protocol whose record holds its episodes unchanged and names it (`reused`:",
-                  f"its id and the sha256 of those episodes). Commit {commit} holds them",
-                  f"(`git checkout {commit[:12]} -- leaderboard/records/<id>.json.gz` restores one; `frbench verify`",
-                  "re-runs it).", ""]
-    return lines
+    return [line for version, (what, commit) in RECORDS_ELSEWHERE.items() for line in (
+        f"Protocol {version}'s {what} are not in this tree: commit {commit} holds them (`git checkout {commit[:12]} "
+        "-- leaderboard/records/<id>.json.gz` restores one, which `frbench verify` re-runs).", "")]
 
 
 def render_markdown(records: Sequence[Mapping]) -> str:
