@@ -126,10 +126,11 @@ def test_evaluate_writes_consistent_results(tmp_path, capsys):
             "--seeds", "0,1", "--episodes", "2", "--jobs", "1", "--out", str(out)]
     assert main(argv) == 0
     printed = capsys.readouterr().out
-    assert "gap (mj-pb)" in printed and f"Results written to {out}" in printed
+    assert "gap (mj-pb)" in printed and "gap (mj-px)" in printed and "gap (pb-px)" in printed
+    assert f"Results written to {out}" in printed
     results = json.loads(out.read_text())
     assert results["schema_version"] == 1 and results["protocol_version"] == PROTOCOL_VERSION
-    assert len(results["cells"]) == 2 * 2 * 2 and len(results["episodes"]) == 16
+    assert len(results["cells"]) == 2 * 3 * 2 and len(results["episodes"]) == 24  # the protocol's three simulators
     assert len(results["robots"]["go2"]["urdf_sha256"]) == 64
     assert set(results["versions"]) >= {"python", "mujoco", "pybullet", "pinocchio", "numpy", "torch"}
     for cell in results["cells"]:
@@ -140,7 +141,7 @@ def test_evaluate_writes_consistent_results(tmp_path, capsys):
     assert {g["terrain"] for g in results["sim_to_sim"]} == {"flat", "gaps"}
     # the per-start-pose table counts every episode once, per backend
     pose_table = printed.split("Success by initial pose:")[1].split("\n\n")[0]
-    assert sum(int(n) for _, n in re.findall(r"(\d+)/(\d+)", pose_table)) == 16
+    assert sum(int(n) for _, n in re.findall(r"(\d+)/(\d+)", pose_table)) == 24
 
 
 def test_initial_pose_table_counts_successes_per_pose_and_backend():

@@ -109,25 +109,30 @@ def fmt_count(row: dict) -> str:
     return f"{row['successes']}/{row['episodes']} {100 * row['successes'] / row['episodes']:5.1f}% [{100 * low:3.0f}-{100 * high:3.0f}]"
 
 
+#: Short names of the grid simulators in the printed table's gap columns.
+SHORT_NAMES = {"mujoco": "mj", "pybullet": "pb", "physx": "px"}
+
+
 def results_table(summary: list[dict], gaps: list[dict]) -> str:
-    """Plain-text table: successes / episodes, rate and 95 % Wilson interval per backend, and the sim-to-sim gap,
-    one row per (robot, terrain, level)."""
+    """Plain-text table: successes / episodes, rate and 95 % Wilson interval per backend, and the sim-to-sim gap of
+    each pair of grid simulators that ran (``gap (mj-pb)``, ``gap (mj-px)``, ``gap (pb-px)``, points), one row per
+    (robot, terrain, level)."""
     by_key: dict[tuple, dict[str, dict]] = defaultdict(dict)
     for row in summary:
         by_key[(row["robot"], row["terrain"], row["level"])][row["backend"]] = row
-    gap_of = {(g["robot"], g["terrain"], g["level"]): g["gap"] for g in gaps}
+    pairs = [pair for pair in SIM_TO_SIM_PAIRS if any(gap_field(*pair) in g for g in gaps)]
+    gap_of = {(g["robot"], g["terrain"], g["level"]): g for g in gaps}
     backends = sorted({row["backend"] for row in summary})
-    header = f"{'robot':<11} {'terrain':<8} {'level':>5} " + " ".join(f"{b:>24}" for b in backends) + f" {'gap (mj-pb)':>12}"
+    header = f"{'robot':<11} {'terrain':<8} {'level':>5} " + " ".join(f"{b:>24}" for b in backends) + "".join(
+        f" {'gap (%s-%s)' % (SHORT_NAMES[a], SHORT_NAMES[b]):>12}" for a, b in pairs)
     lines = [header, "-" * len(header)]
     for key in sorted(by_key):
         rates = by_key[key]
-        cols = []
-        for backend in backends:
-            row = rates.get(backend)
-            cols.append(fmt_count(row) if row else "-")
-        gap = gap_of.get(key)
+        cols = [fmt_count(rates[backend]) if backend in rates else "-" for backend in backends]
+        entry = gap_of.get(key, {})
+        gap_cols = [entry.get(gap_field(*pair)) for pair in pairs]
         lines.append(f"{key[0]:<11} {key[1]:<8} {key[2]:>5} " + " ".join(f"{c:>24}" for c in cols)
-                     + f" {('%+.1f pts' % (100 * gap)) if gap is not None else '-':>12}")
+                     + "".join(f" {('%+.1f pts' % (100 * gap)) if gap is not None else '-':>12}" for gap in gap_cols))
     return "\n".join(lines)
 
 
