@@ -24,18 +24,21 @@ BOARD = Path(__file__).resolve().parents[1] / "leaderboard"
 #: (tools/rescore_physx.py); no 1.3 record ran a learned policy in the robot's own joint frame.
 EXPECTED_MAIN_RECORDS = 17
 EXPECTED_SUPERSEDED = 0
+#: The humanoid track's records (tools/humanoid_records.py): keyframe-humanoid, scripted-humanoid, zero.
+EXPECTED_HUMANOID_RECORDS = 3
 SAMPLE = 4
 
 
 def main_board_files() -> tuple[list[Path], int]:
-    """The record files of the current protocol's main board, ranked (read directly: no checks, no scores), and
-    the number of main-track records a canonical-frame re-score superseded (`frbench.leaderboard.render.superseded`)."""
+    """The record files of the current protocol's main board and humanoid track (read directly: no checks, no
+    scores), and the number of those records a canonical-frame re-score superseded
+    (`frbench.leaderboard.render.superseded`)."""
     from frbench.leaderboard.render import superseded
 
     records = {}
     for path in record_files(BOARD)[0]:
         record = json.loads(gzip.decompress(path.read_bytes()))
-        if record["track"] == "main" and record["results"]["protocol_version"] == PROTOCOL_VERSION:
+        if record["track"] in ("main", "humanoid") and record["results"]["protocol_version"] == PROTOCOL_VERSION:
             records[path] = record
     replaced = superseded(list(records.values()))
     return [p for p, r in records.items() if r["id"] not in replaced], len(replaced)
@@ -44,8 +47,10 @@ def main_board_files() -> tuple[list[Path], int]:
 MAIN_BOARD, SUPERSEDED = main_board_files()
 
 
-def test_the_main_board_holds_the_re_scored_records():
-    assert (len(MAIN_BOARD), SUPERSEDED) == (EXPECTED_MAIN_RECORDS, EXPECTED_SUPERSEDED)
+def test_the_main_board_holds_the_re_scored_records_and_the_humanoid_track_its_records():
+    tracks = [json.loads(gzip.decompress(path.read_bytes()))["track"] for path in MAIN_BOARD]
+    assert (tracks.count("main"), tracks.count("humanoid"), SUPERSEDED) == (
+        EXPECTED_MAIN_RECORDS, EXPECTED_HUMANOID_RECORDS, EXPECTED_SUPERSEDED)
 
 
 @pytest.mark.parametrize("path", MAIN_BOARD, ids=lambda p: p.name[:12])
