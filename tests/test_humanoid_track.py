@@ -21,7 +21,6 @@ from frbench.leaderboard import markdown, render, sections
 from frbench.leaderboard.records import build_record, submission_fields, write_record
 from frbench.leaderboard.results import check_results
 from frbench.leaderboard.scores import generalisation, humanoid_track_shortfall, track_of
-from frbench.tasks.protocol import PROTOCOL_VERSION, has_humanoid_grid
 
 sys.path.insert(0, str(Path(__file__).parent))
 from results_factory import make_results  # noqa: E402
@@ -128,15 +127,6 @@ def test_protocol_12_has_no_humanoid_grid():
         parse_grids("standard,humanoid", "1.2")
 
 
-@pytest.mark.skipif(has_humanoid_grid(PROTOCOL_VERSION), reason="the current protocol has the humanoid grid")
-def test_evaluate_refuses_the_humanoid_grid_under_a_protocol_without_it(capsys, tmp_path):
-    out = str(tmp_path / "r.json")
-    status = main(["evaluate", "--grid", "humanoid", "--policy", "keyframe-humanoid", "--out", out])
-    assert status == 2 and capsys.readouterr().err == (
-        f"frbench evaluate: error: --grid humanoid: the humanoid grid is defined from protocol 1.3 on, not under "
-        f"protocol {PROTOCOL_VERSION}\n")
-
-
 # --------------------------------------------------------------------------- track and scores
 
 
@@ -198,15 +188,6 @@ def test_the_humanoid_section_ranks_its_records_with_the_simulator_state_policy_
     alone = json.loads(render.render_json(list(records.values()), track="humanoid"))
     assert sorted(alone) == ["filters", "humanoid", "protocol_version"] and len(alone["humanoid"]) == 3
     assert "humanoid" in json.loads(render.render_json(list(records.values())))
-
-
-def test_under_protocol_12_the_humanoid_records_are_archived(records):
-    if has_humanoid_grid(PROTOCOL_VERSION):
-        pytest.skip("the current protocol has the humanoid grid")
-    data = render.board(list(records.values()))
-    assert data["humanoid"] == [] and len(data["archived"]) == 3
-    readme = markdown.render_markdown(list(records.values()))
-    assert f"## Humanoid track (protocol {PROTOCOL_VERSION})" in readme and "ranks none" in readme
 
 
 def test_leaderboard_track_humanoid_prints_the_track_alone(records, current_13, tmp_path, capsys):

@@ -6,11 +6,12 @@ from __future__ import annotations
 from decimal import ROUND_HALF_UP, Decimal
 from typing import Iterable, Mapping, Sequence
 
-from frbench.leaderboard.scores import needs_unseen_grid
+from frbench.evaluation.results import SIM_TO_SIM_PAIRS
+from frbench.leaderboard.scores import needs_unseen_grid, pair_name
 
 BACKEND_LABELS = {"mujoco": "MuJoCo", "pybullet": "PyBullet", "physx": "PhysX"}
 #: The first pair of grid simulators (`frbench.evaluation.results.SIM_TO_SIM_PAIRS`): its gap is ``signed_gap``.
-FIRST_PAIR = "mujoco-pybullet"
+FIRST_PAIR = pair_name(*SIM_TO_SIM_PAIRS[0])
 
 
 def pair_label(pair: str) -> str:

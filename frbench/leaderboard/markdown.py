@@ -21,7 +21,7 @@ from frbench.leaderboard.formatting import (
 )
 from frbench.leaderboard.policy_files import MAX_POLICY_BYTES
 from frbench.leaderboard.records import record_file_name
-from frbench.leaderboard.render import axes, board, humanoid_text, humanoid_version, standard_text
+from frbench.leaderboard.render import axes, board, humanoid_text, standard_text
 from frbench.leaderboard.sections import SIMULATOR_STATE, section_of
 from frbench.leaderboard.verify import RELATIVE_TOLERANCE, REPRODUCED_TOLERANCE
 from frbench.tasks.protocol import HUMANOID_EPISODES, HUMANOID_TERRAINS, KNOWN_PROTOCOL_VERSIONS, PROTOCOL_VERSION
@@ -58,7 +58,7 @@ def humanoid_section(rows: Sequence[Mapping], families: Sequence[str], backends:
     """The README's humanoid track: its grid, rules and ranked table (`board`'s ``humanoid`` rows)."""
     from frbench.evaluation.grids import humanoid_part
 
-    episodes = len(humanoid_part(humanoid_version()).keys()) * HUMANOID_EPISODES
+    episodes = len(humanoid_part(PROTOCOL_VERSION).keys()) * HUMANOID_EPISODES
     half_width = 1.96 * (0.25 / episodes) ** 0.5
     lines = [
         f"## Humanoid track (protocol {PROTOCOL_VERSION})",

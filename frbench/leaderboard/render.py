@@ -40,7 +40,6 @@ from frbench.leaderboard.scores import (
 from frbench.leaderboard.sections import SECTIONS, SIMULATOR_STATE, inputs_of, section_of, superseded
 from frbench.leaderboard.summaries import interval_views, record_generalisation, record_intervals
 from frbench.tasks.protocol import (
-    HUMANOID_PROTOCOL,
     HUMANOID_TERRAINS,
     KNOWN_PROTOCOL_VERSIONS,
     PROTOCOL_VERSION,
@@ -50,7 +49,6 @@ from frbench.tasks.protocol import (
     STANDARD_ROBOTS,
     STANDARD_SEEDS,
     STANDARD_TERRAINS,
-    has_humanoid_grid,
     unseen_humanoids,
 )
 
@@ -98,28 +96,17 @@ def standard_text() -> str:
     )
 
 
-def humanoid_version() -> str:
-    """The protocol whose humanoid grid the board describes: the current one, or where it has none, the first that
-    does (`frbench.tasks.protocol.HUMANOID_PROTOCOL`)."""
-    return PROTOCOL_VERSION if has_humanoid_grid(PROTOCOL_VERSION) else HUMANOID_PROTOCOL
-
-
 def humanoid_text() -> str:
-    """The humanoid grid in words (`frbench.evaluation.grids.grid_parts`) under `humanoid_version`, with a note
-    that the current protocol ranks none where it has no humanoid grid."""
+    """The current protocol's humanoid grid in words (`frbench.evaluation.grids.grid_parts`)."""
     from frbench.evaluation.grids import grid_parts
 
-    version = humanoid_version()
-    g1, humanoid_set = grid_parts("humanoid", version)
+    g1, humanoid_set = grid_parts("humanoid", PROTOCOL_VERSION)
     text = (f"the G1 ({', '.join(g1.robots)}) x {len(g1.backends)} simulators ({', '.join(g1.backends)}) x "
             f"{', '.join(g1.terrains)} x levels {'/'.join(map(str, g1.levels))} x seeds "
             f"{'/'.join(map(str, g1.seeds))}, {g1.episodes} episodes per cell ({len(g1.keys())} cells), and the "
             f"unseen humanoid set ({', '.join(humanoid_set.robots)}) x levels "
             f"{'/'.join(map(str, humanoid_set.levels))} on the same families, seeds and simulators "
             f"({len(humanoid_set.keys())} cells)")
-    if version != PROTOCOL_VERSION:
-        text += (f"; defined from protocol {HUMANOID_PROTOCOL} on, so the current protocol {PROTOCOL_VERSION} ranks "
-                 f"none (protocol {HUMANOID_PROTOCOL} records are archived until it is current)")
     return text
 
 

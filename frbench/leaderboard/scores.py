@@ -34,7 +34,6 @@ Means use ``math.fsum`` so they do not depend on the order of the cells.
 
 from __future__ import annotations
 
-import itertools
 import math
 from functools import lru_cache
 from typing import Iterable, Mapping, Sequence
@@ -47,19 +46,10 @@ from frbench.evaluation.results import SIM_TO_SIM_PAIRS
 from frbench.tasks.protocol import (
     GRID_SIMULATORS,
     HUMANOID_EPISODES,
-    HUMANOID_LEVELS,
     HUMANOID_PROTOCOL,
-    HUMANOID_ROBOTS,
-    HUMANOID_SEEDS,
-    HUMANOID_TERRAINS,
     KNOWN_PROTOCOL_VERSIONS,
     PROTOCOL_VERSION,
     STANDARD_EPISODES,
-    STANDARD_LEVELS,
-    STANDARD_ROBOTS,
-    STANDARD_SEEDS,
-    STANDARD_TERRAINS,
-    grid_backends,
     has_humanoid_grid,
     version_key,
 )
@@ -67,23 +57,17 @@ from frbench.tasks.protocol import (
 #: (robot, backend, terrain, level) -> (sum of the cells' success rates, number of cells).
 Groups = dict[tuple[str, str, str, int], tuple[float, int]]
 
-#: The standard grid's cells in every grid simulator: the cells a main record is scored on.
-STANDARD_GRID = frozenset(
-    itertools.product(STANDARD_ROBOTS, GRID_SIMULATORS, STANDARD_TERRAINS, STANDARD_LEVELS, STANDARD_SEEDS)
-)
-#: The humanoid grid's G1 cells in every grid simulator: the cells a humanoid-track record is scored on.
-HUMANOID_GRID = frozenset(
-    itertools.product(HUMANOID_ROBOTS, GRID_SIMULATORS, HUMANOID_TERRAINS, HUMANOID_LEVELS, HUMANOID_SEEDS)
-)
 #: The newest protocol version: its grids hold every grid simulator.
 NEWEST = KNOWN_PROTOCOL_VERSIONS[-1]
 
 
 @lru_cache(maxsize=8)
-def standard_grid(version: str) -> frozenset:
-    """The standard grid's cells under protocol ``version`` (its simulators, `grid_backends`)."""
-    return frozenset(itertools.product(STANDARD_ROBOTS, grid_backends(version), STANDARD_TERRAINS, STANDARD_LEVELS,
-                                       STANDARD_SEEDS))
+def standard_grid(version: str = NEWEST) -> frozenset:
+    """The standard grid's cells under protocol ``version`` (its simulators, `grid_backends`; the newest by default:
+    in every grid simulator, the cells a main record is scored on)."""
+    from frbench.evaluation.grids import standard_part
+
+    return frozenset(standard_part(version).keys())
 
 
 def cell_key(cell: Mapping) -> tuple:
@@ -108,8 +92,9 @@ def unseen_humanoid_grid(version: str = NEWEST) -> frozenset:
 
 
 @lru_cache(maxsize=8)
-def humanoid_grid(version: str) -> frozenset:
-    """The humanoid grid's G1 cells under protocol ``version`` (1.3 on; `frbench.evaluation.grids.humanoid_part`)."""
+def humanoid_grid(version: str = NEWEST) -> frozenset:
+    """The humanoid grid's G1 cells under protocol ``version`` (1.3 on; `frbench.evaluation.grids.humanoid_part`;
+    the newest by default: in every grid simulator, the cells a humanoid-track record is scored on)."""
     from frbench.evaluation.grids import humanoid_part
 
     return frozenset(humanoid_part(version).keys())
@@ -191,9 +176,9 @@ def scored_cells(cells: Sequence[Mapping], track: str) -> list[Mapping]:
     humanoid ones; for partial ones all cells but the unseen grid's (scored apart, `unseen_cells`), or all if it
     has no others."""
     if track == "main":
-        return [c for c in cells if cell_key(c) in STANDARD_GRID]
+        return [c for c in cells if cell_key(c) in standard_grid()]
     if track == "humanoid":
-        return [c for c in cells if cell_key(c) in HUMANOID_GRID]
+        return [c for c in cells if cell_key(c) in humanoid_grid()]
     unseen = unseen_grid() | unseen_humanoid_grid()
     others = [c for c in cells if cell_key(c) not in unseen]
     return others or list(cells)
@@ -205,7 +190,7 @@ def matched_standard_cells(cells: Sequence[Mapping]) -> list[Mapping]:
     the bodies, not the terrain difficulty."""
     from frbench.tasks.protocol import UNSEEN_LEVELS, UNSEEN_TERRAINS
 
-    return [c for c in cells if cell_key(c) in STANDARD_GRID and c["terrain"] in UNSEEN_TERRAINS
+    return [c for c in cells if cell_key(c) in standard_grid() and c["terrain"] in UNSEEN_TERRAINS
             and c["level"] in UNSEEN_LEVELS]
 
 
