@@ -26,6 +26,7 @@ def test_the_presets_schedule_numbers():
     assert [s.imitation_weight(x) for x in (0, 2.9e6, 3e6, 7.5e6, 10.5e6, 12e6, 30e6)] == pytest.approx(
         [1.0, 1.0, 1.0, 0.5, 1 / 6, 0.0, 0.0])
     assert [s.rl_weight(x) for x in (0, 2.999e6, 3e6, 12e6)] == [0.0, 0.0, 1.0, 1.0]
+    assert cfg.dagger_noise == 0.2  # DART: the teacher acts with 0.2 rad of noise
     assert s.acts(0, 5, 64).all()  # round 0: behaviour cloning
     round1 = np.mean([s.acts(1.5e6, e, 256).mean() for e in range(40)])
     assert round1 == pytest.approx(0.25, abs=0.02)
@@ -91,6 +92,40 @@ def test_env_labels_are_scripteds_actions_on_the_visited_observations_and_dagger
                 assert np.allclose(executed, teacher[:, :12] if dagger else action.astype(np.float32), atol=1e-6)
     finally:
         env.close()
+
+
+def _executed_and_label(noise: float, steps: int = 30) -> tuple[np.ndarray, np.ndarray]:
+    """What the training env executed and the teacher's labels, each (steps - 1, 6, 12), the learner asking for
+    zeros (the first step of the second episode left out: a new episode begins its actions at zero)."""
+    from frbench.training.env import RecoveryTrainingEnv
+
+    cfg = TrainEnvConfig(num_envs=6, num_morphologies=2, families=("flat",), episode_steps=20, settle_steps=5,
+                         teacher="scripted", dagger_steps=20, dagger_rounds=1, imitation_until=40, seed=3,
+                         dagger_noise=noise)
+    env = RecoveryTrainingEnv(cfg)
+    try:
+        obs, executed, labels = env.get_observations(), [], []
+        for _ in range(steps):
+            label = obs["teacher"].numpy()[:, :12].copy()
+            obs, *_ = env.step(torch.zeros(6, 12))
+            if env.step_count:
+                executed.append(np.asarray(env.core.actions.current, dtype=np.float64))
+                labels.append(label)
+        return np.array(executed), np.array(labels)
+    finally:
+        env.close()
+
+
+def test_dart_noise_perturbs_what_the_teacher_executes_not_its_label_and_ends_with_dagger():
+    executed, labels = _executed_and_label(0.1)
+    gaps = executed[:19] - labels[:19]  # the DAgger episode (the teacher acts); then the learner's zeros
+    assert np.std(gaps) == pytest.approx(0.1, rel=0.1) and abs(np.mean(gaps)) < 0.01
+    assert np.allclose(executed[19:], 0.0) and np.abs(labels[19:]).max() > 0.1
+    assert np.allclose(_executed_and_label(0.1)[0], executed)  # seeded by (seed, episode): the same noise again
+    clean, clean_labels = _executed_and_label(0.0)
+    assert np.allclose(clean[:19], clean_labels[:19], atol=1e-6)  # no noise: the label itself
+    with pytest.raises(ValueError, match="dagger_noise"):
+        TrainEnvConfig(teacher="scripted", dagger_steps=1e6, dagger_noise=-0.1)
 
 
 def test_the_imitation_term_pulls_the_mean_action_toward_the_label_with_its_weight():

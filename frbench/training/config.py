@@ -127,6 +127,9 @@ class TrainEnvConfig:
     dagger_beta: float = 0.0
     imitation_weight: float = 1.0
     imitation_until: float = 0.0
+    #: Standard deviation [action units] of the Gaussian noise added to the teacher's label where it acts, drawn
+    #: afresh every control step (DART; `frbench.training.teacher`); 0: the teacher acts exactly.
+    dagger_noise: float = 0.0
 
     def __post_init__(self) -> None:
         def set_(name: str, value) -> None:
@@ -193,6 +196,7 @@ class TrainEnvConfig:
             need(self.action_hold == 1, "action_hold", "1 with a teacher (it labels every control step)")
             need(not self.base_controller, "base_controller", "none with a teacher (it labels the plain policy)")
             need(self.robot_kind() == "quadruped", "teacher", "a quadruped batch (scripted drives quadrupeds)")
+        need(self.dagger_noise >= 0, "dagger_noise", "a standard deviation >= 0 [action units]")
         self.imitation_schedule()  # ValueError naming a bad dagger_* or imitation_* value
         for name in ("gain_ranges", "morphology_ranges"):
             for key, (low, high) in getattr(self, name).items():

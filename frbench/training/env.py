@@ -123,7 +123,7 @@ class RecoveryTrainingEnv(VecEnv):
         self.device_arrays = self.core.device_arrays
         #: the teacher labelling every control step (`frbench.training.teacher`), or None
         self.teacher = (EnvTeacher(self.robots.specs, self.robots.assignment, policy_pose, frame, cfg.action_scale,
-                                   cfg.imitation_schedule()) if cfg.teacher else None)
+                                   cfg.imitation_schedule(), cfg.dagger_noise, cfg.seed) if cfg.teacher else None)
         self.last_episode_stats: dict[str, float] = {}
         #: the curriculum's levels at the last episode end (`TerrainCurriculum.stats`, ``level_<family>`` …)
         self.last_curriculum_stats: dict[str, float] = {}
@@ -141,8 +141,7 @@ class RecoveryTrainingEnv(VecEnv):
     def env_steps(self, steps: int) -> None:
         self.core.env_steps = steps
         if self.teacher is not None:  # a resumed run: the current episode's teacher and weights at its step
-            self.teacher.acting = self.teacher.schedule.acts(steps, self._episode_number(), self.num_envs)
-            self.teacher.weights = (self.teacher.schedule.imitation_weight(steps), self.teacher.schedule.rl_weight(steps))
+            self.teacher.resume(steps, self._episode_number())
 
     def _episode_number(self) -> int:
         """The run's episodes so far (all environments' episodes end together)."""

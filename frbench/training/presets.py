@@ -100,10 +100,12 @@ _SYMMETRY_ASSIST_STEADY = replace(
 
 #: ``kickstart-scripted``'s timetable (`frbench.training.dagger.ImitationSchedule`, env steps): 3 M env steps of
 #: DAgger from ``scripted`` in 3 rounds (round 0 behaviour cloning, then the teacher acts in a quarter of the
-#: episodes), then PPO with the imitation weight falling from 1 to 0 at 12 M env steps.
+#: episodes), then PPO with the imitation weight falling from 1 to 0 at 12 M env steps. Where the teacher acts it
+#: acts with Gaussian noise of 0.2 rad (DART): without it the actor learns to copy its previous action
+#: (docs/training.md, "Why the first recipe stalled"; ``dagger_noise=0`` is that first recipe).
 KICKSTART_SCRIPTED = MappingProxyType({
     "teacher": "scripted", "dagger_steps": 3e6, "dagger_rounds": 3, "dagger_beta": 0.25, "imitation_weight": 1.0,
-    "imitation_until": 12e6})
+    "imitation_until": 12e6, "dagger_noise": 0.2})
 
 PRESETS: Mapping[str, Preset] = MappingProxyType({
     "paper": Preset("random morphologies on all terrains, the paper's setup (the defaults)"),

@@ -5,7 +5,12 @@ its own environments, in its robot's joints, as `frbench.training.demo_starts` d
 environments really visit, whoever acts. At every control step it gives each environment's label, the action
 in the learner's frame and units that asks for the controller's joint targets (`dagger.teacher_label`). In the
 episodes the teacher acts in (DAgger's rule, `dagger.ImitationSchedule.acts`) the env executes the label
-instead of the learner's action.
+instead of the learner's action, plus, with ``noise`` > 0, Gaussian noise of that standard deviation [action
+units] drawn afresh every control step (DART, Laskey et al. 2017). The noise is what keeps the learner from
+copying: the teacher's targets move by small ramps, so without it the previous action in the learner's
+observation predicts the next label almost exactly, and a learner that copies it imitates well on the teacher's
+states and stalls on its own (docs/training.md, "Why the first recipe stalled"). The label stays the teacher's
+clean target; the executed, noisy action is the one the next observation carries.
 
 The training env adds the observation group ``teacher`` (N, J + 3) (`TEACHER_GROUP`): the label (J), the
 imitation weight and the PPO weight at the current env step (`dagger.ImitationSchedule`), and 1 where the
@@ -39,10 +44,12 @@ class EnvTeacher:
         frame: the learner's `JointFrame` (None: the robots' own joints).
         scale: the learner's action scale (q* = q̊ + scale·a).
         schedule: the `ImitationSchedule`.
+        noise: standard deviation [action units] of the noise added where the teacher acts (0: none).
+        seed: the seed of the noise, drawn per episode from a generator seeded by (seed, episode).
     """
 
     def __init__(self, specs, assignment: np.ndarray, policy_default_pose: np.ndarray, frame, scale: float,
-                 schedule: ImitationSchedule):
+                 schedule: ImitationSchedule, noise: float = 0.0, seed: int = 0):
         self.specs, self.assignment = list(specs), np.asarray(assignment)
         self.groups = [np.flatnonzero(self.assignment == k) for k in range(len(self.specs))]
         self.controllers = [ScriptedPolicy() for _ in self.specs]
@@ -52,6 +59,8 @@ class EnvTeacher:
         self.label = np.zeros((n, len(self.policy_default_pose)))
         self.acting = np.zeros(n, dtype=bool)
         self.weights = (0.0, 1.0)
+        self.noise, self.seed = float(noise), int(seed)
+        self.noise_rng = np.random.default_rng([self.seed, 0, 11])
 
     def new_episodes(self, observation: dict[str, np.ndarray], env_steps: int, episode: int) -> None:
         """New episodes of every environment from ``observation`` (the robots' proprioception dict, their own
@@ -60,8 +69,15 @@ class EnvTeacher:
         for controller, spec, ids in zip(self.controllers, self.specs, self.groups):
             if len(ids):
                 controller.reset(spec, len(ids))
-        self.acting = self.schedule.acts(env_steps, episode, len(self.assignment))
+        self.resume(env_steps, episode)
         self.observe(observation, env_steps)
+
+    def resume(self, env_steps: int, episode: int) -> None:
+        """Who acts in the ``episode``-th episode, its noise generator and the weights at ``env_steps`` (also a
+        resumed run's current episode)."""
+        self.acting = self.schedule.acts(env_steps, episode, len(self.assignment))
+        self.noise_rng = np.random.default_rng([self.seed, int(episode), 11])
+        self.weights = (self.schedule.imitation_weight(env_steps), self.schedule.rl_weight(env_steps))
 
     def observe(self, observation: dict[str, np.ndarray], env_steps: int) -> None:
         """The labels (N, J) of this control step's ``observation`` (its ``projected_gravity`` (N, 3) and
@@ -75,10 +91,14 @@ class EnvTeacher:
         self.weights = (self.schedule.imitation_weight(env_steps), self.schedule.rl_weight(env_steps))
 
     def executed(self, action: np.ndarray) -> np.ndarray:
-        """The actions (N, J) the env executes: the label where the teacher acts, ``action`` elsewhere."""
+        """The actions (N, J) the env executes: the label (plus the noise) where the teacher acts, ``action``
+        elsewhere."""
         if not self.acting.any():
             return action
-        return np.where(self.acting[:, None], self.label, action)
+        acted = self.label
+        if self.noise > 0:
+            acted = acted + self.noise * self.noise_rng.standard_normal(self.label.shape)
+        return np.where(self.acting[:, None], acted, action)
 
     def group(self) -> np.ndarray:
         """The ``teacher`` observation group (N, J + 3): label, imitation weight, PPO weight, teacher acted."""
