@@ -387,7 +387,7 @@ def test_an_unknown_protocol_version_is_a_one_line_error():
                                 seeds=[0], episodes=1, protocol_version="9.9")
     with pytest.raises(FrbenchError) as error:
         validate(request)
-    assert str(error.value) == "unknown protocol version '9.9' (known: 1.0, 1.1, 1.2, 1.3)"
+    assert str(error.value) == "unknown protocol version '9.9' (known: 1.0, 1.1, 1.2, 1.3, 1.4)"
 
 
 def _tiny(protocol_version: str, backends: list[str]) -> dict:

@@ -17,11 +17,13 @@ without running the settle). For each robot it prints:
   fall kind): equal digests mean bit-identical starts.
 
 ``--max-redraws N`` sets `frbench.tasks.initial_states.MAX_REDRAWS` for the run (e.g. 2000, to measure a
-larger budget); ``--json PATH`` writes the table, ``--compare PATH`` prints,
+larger budget); ``--protocol V`` draws with protocol V's joint-redraw rule instead (`joint_redraws`: 1.4 redraws
+until free, at most `MAX_FREE_REDRAWS` times, and a start beyond it is counted in ``raised``); ``--json PATH`` writes the table, ``--compare PATH`` prints,
 per robot, whether its digest equals the one in an earlier ``--json``.
 
 Run: ``python tools/start_overlap_audit.py`` (about 30 s on one core);
-``--max-redraws 50 --json /tmp/old.json``, then ``--compare /tmp/old.json``; ``--robots icub,talos --attempts 0``.
+``--max-redraws 50 --json /tmp/old.json``, then ``--compare /tmp/old.json``; ``--robots icub,talos --attempts 0``;
+``--protocol 1.3 --attempts 0 --json /tmp/13.json``, then ``--protocol 1.4 --attempts 0 --compare /tmp/13.json``.
 """
 
 from __future__ import annotations
@@ -38,7 +40,7 @@ from frbench.errors import FrbenchError
 from frbench.evaluation.grids import GRID_NAMES, grid_parts
 from frbench.robots.registry import get_robot
 from frbench.tasks import initial_states
-from frbench.tasks.initial_states import draw_start, episode_rng
+from frbench.tasks.initial_states import draw_start, episode_rng, joint_redraws
 from frbench.tasks.start_screening import MAX_SCREEN_ROUNDS
 from frbench.terrains import make_terrain
 
@@ -58,8 +60,9 @@ def start_digest(pos: np.ndarray, quat: np.ndarray, q: np.ndarray, kind: str) ->
     return b"".join(np.ascontiguousarray(a, dtype=np.float64).tobytes() for a in (pos, quat, q)) + kind.encode()
 
 
-def audit_robot(robot: str, cells, attempts: int) -> dict:
-    """Draw every start of ``robot``'s ``cells`` (attempts 0 … ``attempts``) and count overlaps and draws."""
+def audit_robot(robot: str, cells, attempts: int, redraws=None) -> dict:
+    """Draw every start of ``robot``'s ``cells`` (attempts 0 … ``attempts``) with the joint-redraw rule
+    ``redraws`` (None: `MAX_REDRAWS`, keeping the last draw) and count overlaps and draws."""
     spec = get_robot(robot)
     draws = [0]
 
@@ -80,7 +83,7 @@ def audit_robot(robot: str, cells, attempts: int) -> dict:
                     rng = episode_rng(robot, terrain_name, level, seed, episode, attempt=attempt)
                     where = f"{robot} {terrain_name} level {level} seed {seed} episode {episode} attempt {attempt}"
                     try:
-                        pos, quat, q, kind = draw_start(spec, terrain, rng)
+                        pos, quat, q, kind = draw_start(spec, terrain, rng, redraws)
                     except FrbenchError:
                         failures.append(where)
                         continue
@@ -102,6 +105,7 @@ def main() -> None:
     parser.add_argument("--attempts", type=int, default=MAX_SCREEN_ROUNDS,
                         help=f"screening redraws per episode to draw as well (default {MAX_SCREEN_ROUNDS})")
     parser.add_argument("--max-redraws", type=int, default=None, help="MAX_REDRAWS for this run")
+    parser.add_argument("--protocol", default=None, help="draw with this protocol's joint-redraw rule")
     parser.add_argument("--json", default=None, help="write the per-robot table here")
     parser.add_argument("--compare", default=None, help="a --json of an earlier run: compare digests")
     args = parser.parse_args()
@@ -110,13 +114,16 @@ def main() -> None:
     cells = grid_cells()
     robots = args.robots.split(",") if args.robots else list(cells)
     earlier = json.load(open(args.compare))["robots"] if args.compare else {}
-    print(f"MAX_REDRAWS = {initial_states.MAX_REDRAWS}, attempts 0-{args.attempts} per episode")
+    redraws = joint_redraws(args.protocol) if args.protocol else None
+    rule = (f"protocol {args.protocol}: {redraws.limit} redraws" + (", until free" if redraws.free else "")
+            if redraws else f"MAX_REDRAWS = {initial_states.MAX_REDRAWS}")
+    print(f"{rule}, attempts 0-{args.attempts} per episode")
     print(f"{'robot':<12} {'cells':>5} {'starts':>6} {'overlapping':>11} {'raised':>6} {'joint draws mean/max':>21}"
           f"  sha256[:16]{'  same as --compare' if earlier else ''}")
     table = {}
     began = time.perf_counter()
     for robot in robots:
-        row = audit_robot(robot, cells[robot], args.attempts)
+        row = audit_robot(robot, cells[robot], args.attempts, redraws)
         row["cells"] = len(cells[robot])
         table[robot] = row
         same = ""
@@ -129,7 +136,7 @@ def main() -> None:
     print(f"({time.perf_counter() - began:.0f} s)")
     if args.json:
         with open(args.json, "w") as f:
-            json.dump({"max_redraws": initial_states.MAX_REDRAWS, "attempts": args.attempts, "robots": table}, f,
+            json.dump({"max_redraws": redraws.limit if redraws else initial_states.MAX_REDRAWS, "attempts": args.attempts, "robots": table}, f,
                       indent=1)
 
 

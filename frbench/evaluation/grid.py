@@ -156,10 +156,11 @@ def run_grid(request: EvaluationRequest, progress=None) -> list[dict]:
         from frbench.evaluation.ray_executor import run_cells_on_ray
 
         records = run_cells_on_ray(cells, request.policy, request.noise, progress, request.address, request.jobs,
-                                   request.device)
+                                   request.device, request.protocol_version)
     elif jobs <= 1:
         for cell in cells:
-            records += run_cell(cell, request.policy, request.noise, device=request.device)
+            records += run_cell(cell, request.policy, request.noise, device=request.device,
+                                protocol_version=request.protocol_version)
             if progress:
                 progress(cell)
     else:
@@ -169,7 +170,8 @@ def run_grid(request: EvaluationRequest, progress=None) -> list[dict]:
         with ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=_worker_init) as pool:
             try:
                 with children_ignore_sigint():  # the workers start (at submit) ignoring Ctrl-C
-                    futures = {pool.submit(run_cell, cell, request.policy, request.noise, device=request.device): cell
+                    futures = {pool.submit(run_cell, cell, request.policy, request.noise, device=request.device,
+                                           protocol_version=request.protocol_version): cell
                                for cell in cells}
                 for future in as_completed(futures):
                     records += future.result()

@@ -28,6 +28,7 @@ from collections.abc import Callable
 
 from frbench.errors import FrbenchError
 from frbench.evaluation.runner import Cell, run_cell
+from frbench.tasks.protocol import PROTOCOL_VERSION
 
 #: Times a cell is run again after its worker died before the grid fails.
 MAX_RETRIES = 3
@@ -46,13 +47,13 @@ def _import_ray():
 
 
 def _run_cell_in_worker(cell: Cell, policy_reference: str, noise: bool, driver_cwd: str,
-                        device: str | None = None) -> list[dict]:
+                        device: str | None = None, protocol_version: str = PROTOCOL_VERSION) -> list[dict]:
     """The body of a cell's Ray task: one MuJoCo and one torch thread, the driver's folder for relative paths."""
     os.environ["FRBENCH_MUJOCO_THREADS"] = "1"
     if os.path.isdir(driver_cwd) and os.getcwd() != driver_cwd:
         os.chdir(driver_cwd)
 
-    return run_cell(cell, policy_reference, noise, device=device)
+    return run_cell(cell, policy_reference, noise, device=device, protocol_version=protocol_version)
 
 
 def _connect(ray, address: str | None, num_cpus: int) -> bool:
@@ -83,9 +84,10 @@ def _connect(ray, address: str | None, num_cpus: int) -> bool:
 
 def run_cells_on_ray(cells: list[Cell], policy_reference: str, noise: bool = False,
                      progress: Callable[[Cell], None] | None = None, address: str | None = None,
-                     num_cpus: int = 0, device: str | None = None) -> list[dict]:
+                     num_cpus: int = 0, device: str | None = None,
+                     protocol_version: str = PROTOCOL_VERSION) -> list[dict]:
     """Run ``cells`` as Ray tasks; returns their episode records (in completion order, unsorted); ``device``: where
-    a device simulator runs (`run_cell`).
+    a device simulator runs, ``protocol_version``: whose starts the cells draw (`run_cell`).
 
     ``progress(cell)`` is called on the driver as each cell finishes. ``num_cpus`` (0: this machine's
     cores) sizes a local instance; a cluster brings its own CPUs. On any exception (including
@@ -98,7 +100,7 @@ def run_cells_on_ray(cells: list[Cell], policy_reference: str, noise: bool = Fal
     pending: dict = {}
     try:
         cwd = os.getcwd()
-        pending = {task.remote(cell, policy_reference, noise, cwd, device): cell for cell in cells}
+        pending = {task.remote(cell, policy_reference, noise, cwd, device, protocol_version): cell for cell in cells}
         records: list[dict] = []
         while pending:
             done, _ = ray.wait(list(pending), num_returns=1)

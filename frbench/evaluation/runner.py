@@ -18,6 +18,7 @@ from frbench.evaluation.episodes import run_episodes
 from frbench.policies.registry import load_policy
 from frbench.robot_checks.lookup import get_robot
 from frbench.tasks.initial_states import draw_starts
+from frbench.tasks.protocol import PROTOCOL_VERSION
 from frbench.terrains import make_terrain
 
 
@@ -56,15 +57,17 @@ def _one_torch_thread() -> None:
 
 
 def run_cell(cell: Cell, policy_reference: str, noise: bool = False, joint_frame: str | None = None,
-             device: str | None = None) -> list[dict]:
+             device: str | None = None, protocol_version: str = PROTOCOL_VERSION) -> list[dict]:
     """Run the cell's episodes with the policy (`run_episodes`); one record per episode. ``joint_frame``
     (``robot`` / ``canonical``) overrides the frame the policy declares: `frbench verify` re-runs a record in
-    the frame its results name (absent: ``robot``). ``device``: where a device simulator runs (None: ``cpu``)."""
+    the frame its results name (absent: ``robot``). ``device``: where a device simulator runs (None: ``cpu``).
+    ``protocol_version``: the protocol whose starts the cell draws (its joint-redraw rule, `draw_starts`)."""
     spec = get_robot(cell.robot)
     policy = _policy(policy_reference)
     _one_torch_thread()
     terrain = make_terrain(cell.terrain, cell.level, cell.seed)
-    starts = draw_starts(spec, terrain, cell.terrain, cell.level, cell.seed, range(cell.episodes))
+    starts = draw_starts(spec, terrain, cell.terrain, cell.level, cell.seed, range(cell.episodes),
+                         rule=protocol_version)
     noise_rng = np.random.default_rng([cell.seed, cell.level, 7]) if noise else None
     task = run_episodes(spec, cell.backend, terrain, starts, policy, seed=cell.seed, noise_rng=noise_rng,
                         joint_frame=joint_frame, device=device if cell.backend in DEVICE_SIMULATORS else None)

@@ -297,7 +297,8 @@ def verify(record: dict, root: Path, *, sample: int = 8, seed: int = 0, toleranc
     recorded, fresh_episodes, cell_rates, differing, identical = [], [], [], [], True
     for key, wanted in sorted(by_cell.items(), key=lambda item: tuple(map(str, item[0]))):
         fresh = run_cell(Cell(*key, results["config"]["episodes"]), reference, results["config"]["noise"],
-                         joint_frame=results["policy"].get("joint_frame", "robot"))
+                         joint_frame=results["policy"].get("joint_frame", "robot"),
+                         protocol_version=results["protocol_version"])
         by_episode = {e["episode"]: e for e in fresh}
         for episode in wanted:
             again = by_episode.get(episode["episode"], {})

@@ -8,7 +8,8 @@ for `SETTLE_SECONDS` each, under their own physics, before t = 0).
 Draw (docs/protocol.md): the fall kind is one of supine, prone, left side,
 right side and a uniformly random orientation, with `FALL_WEIGHTS`; yaw is uniform (flat) or
 the terrain's spawn yaw ± 0.3 rad; joints are uniform within their limits,
-redrawn while the legs intersect each other (up to `MAX_REDRAWS` times). The
+redrawn while links intersect each other (`joint_redraws`: up to `MAX_REDRAWS` times, then the last draw
+is kept, under protocols up to 1.3; until free, at most `MAX_FREE_REDRAWS` times, from 1.4). The
 robot is then lifted so its lowest collision point is `DROP_HEIGHT` above the
 highest terrain point within its reach.
 """
@@ -23,11 +24,12 @@ import numpy as np
 
 from frbench.backends.base import RobotState
 from frbench.backends.self_collision import self_intersects
+from frbench.errors import FrbenchError
 from frbench.portable_products import unit
 from frbench.robots.sim_urdf import sim_robot_file
 from frbench.robots.spec import RobotSpec
 from frbench.robots.urdf_tree import parse_urdf
-from frbench.tasks.protocol import STARTS_KEY_VERSION
+from frbench.tasks.protocol import FREE_STARTS_PROTOCOL, PROTOCOL_VERSION, STARTS_KEY_VERSION, version_key
 from frbench.tasks.start_geometry import StartGeometry
 from frbench.terrains import support_height
 
@@ -46,16 +48,40 @@ SETTLE_SECONDS = 1.0
 SETTLE_GAIN_SCALE = 0.3
 #: Yaw jitter [rad] around a terrain's spawn yaw.
 YAW_JITTER = 0.3
-#: Joint draws tried before giving up on a self-intersection-free one.
+#: Joint redraws tried before giving up on a self-intersection-free draw (protocols up to 1.3, and training
+#: starts): the next draw is then kept, overlapping or not.
 MAX_REDRAWS = 50
+#: Joint redraws allowed from protocol 1.4 (`FREE_STARTS_PROTOCOL`) on, until a draw is free; a start whose draws
+#: all overlap is an error. The evaluation grids' largest need is 1828 joint draws (Talos; docs/protocol.md,
+#: "Protocol 1.4").
+MAX_FREE_REDRAWS = 5000
+
+
+@dataclass(frozen=True)
+class JointRedraws:
+    """How a start's joint angles are redrawn while its links overlap: at most ``limit`` redraws after the first
+    draw; ``free`` True: a start whose last draw still overlaps raises a `FrbenchError`, False: it is kept."""
+
+    limit: int
+    free: bool
+
+
+def joint_redraws(version: str = PROTOCOL_VERSION) -> JointRedraws:
+    """The redraw rule of protocol ``version``: `MAX_REDRAWS` keeping the last draw before
+    `FREE_STARTS_PROTOCOL`, `MAX_FREE_REDRAWS` until free from it on (the first 51 draws are the same under both,
+    so only starts that exhausted 50 redraws differ)."""
+    if version_key(version) >= version_key(FREE_STARTS_PROTOCOL):
+        return JointRedraws(MAX_FREE_REDRAWS, True)
+    return JointRedraws(MAX_REDRAWS, False)
 
 
 @dataclass
 class FallenStarts:
     """N drawn starts. base_pos (N, 3) [m], base_quat (N, 4) wxyz, q (N, n_joints) [rad], kinds (N,).
 
-    ``cell`` (spec, terrain, family, level, seed, episode indices) and ``attempts`` (N,) are set by
-    `draw_starts`: they let `frbench.tasks.start_screening` redraw a start deterministically.
+    ``cell`` (spec, terrain, family, level, seed, episode indices), ``attempts`` (N,) and ``redraws`` (the
+    protocol's `JointRedraws`) are set by `draw_starts`: they let `frbench.tasks.start_screening` redraw a start
+    deterministically.
     """
 
     base_pos: np.ndarray
@@ -64,6 +90,7 @@ class FallenStarts:
     kinds: list[str]
     cell: tuple | None = None
     attempts: np.ndarray | None = None
+    redraws: JointRedraws | None = None
 
 
 @dataclass(frozen=True)
@@ -159,8 +186,12 @@ def lowest_offset_and_reach(spec: RobotSpec, quat: np.ndarray, q: np.ndarray) ->
     return _geometry(spec).lowest_offset_and_reach(rotation, np.asarray(q))
 
 
-def draw_start(spec: RobotSpec, terrain, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
-    """One fallen start on ``terrain``: (base_pos (3,), base_quat (4,), q (n_joints,), kind)."""
+def draw_start(spec: RobotSpec, terrain, rng: np.random.Generator, redraws: JointRedraws | None = None,
+               where: str = "") -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
+    """One fallen start on ``terrain``: (base_pos (3,), base_quat (4,), q (n_joints,), kind). ``redraws``: the
+    joint-redraw rule (None: `MAX_REDRAWS`, keeping the last draw, as training starts do); ``where`` names the
+    start in the error a free rule raises when every draw overlaps."""
+    redraws = redraws or JointRedraws(MAX_REDRAWS, False)
     kind = FALL_KINDS[rng.choice(len(FALL_KINDS), p=FALL_WEIGHTS)]
     if terrain.family == "flat":
         yaw = rng.uniform(-np.pi, np.pi)
@@ -168,10 +199,14 @@ def draw_start(spec: RobotSpec, terrain, rng: np.random.Generator) -> tuple[np.n
         yaw = terrain.spawn_yaw + rng.uniform(-YAW_JITTER, YAW_JITTER)
     quat = fall_orientation(kind, spec.kind, yaw, rng)
     q = rng.uniform(spec.joint_lower, spec.joint_upper)
-    for _ in range(MAX_REDRAWS):
+    for _ in range(redraws.limit):
         if not self_intersects(spec, q):
             break
         q = rng.uniform(spec.joint_lower, spec.joint_upper)
+    else:
+        if redraws.free and self_intersects(spec, q):
+            raise FrbenchError(f"start of {spec.name}{' ' + where if where else ''}: its links overlap in every one "
+                               f"of {redraws.limit + 1} joint draws (docs/protocol.md, \"Protocol 1.4\")")
     lowest, reach = lowest_offset_and_reach(spec, quat, q)
     x, y = terrain.spawn_xy
     ground = support_height(terrain, (x, y), reach)
@@ -179,12 +214,22 @@ def draw_start(spec: RobotSpec, terrain, rng: np.random.Generator) -> tuple[np.n
     return np.array([x, y, z]), quat, q, kind
 
 
+def start_name(family: str, level: int, seed: int, episode: int, attempt: int = 0) -> str:
+    """How an error names one start of a cell: ``flat level 1 seed 0 episode 2`` (``attempt 1``: a redraw)."""
+    return f"{family} level {int(level)} seed {int(seed)} episode {int(episode)}" + (
+        f" attempt {int(attempt)}" if attempt else "")
+
+
 def draw_starts(spec: RobotSpec, terrain, family: str, level: int, seed: int, episodes,
-                protocol_version: str = STARTS_KEY_VERSION) -> FallenStarts:
-    """The starts of ``episodes`` (indices) in one (robot, terrain, level, seed) cell (an earlier
-    ``protocol_version`` re-draws that version's first draws, e.g. to compare success rules on them)."""
+                protocol_version: str = STARTS_KEY_VERSION, rule: str = PROTOCOL_VERSION) -> FallenStarts:
+    """The starts of ``episodes`` (indices) in one (robot, terrain, level, seed) cell, with the joint-redraw rule
+    of protocol ``rule`` (`joint_redraws`; a start whose draws all overlap under 1.4 raises a one-line
+    `FrbenchError` naming it). An earlier ``protocol_version`` re-draws that version's first draws, e.g. to compare
+    success rules on them."""
     episodes = list(episodes)
-    rows = [draw_start(spec, terrain, episode_rng(spec.name, family, level, seed, e, protocol_version=protocol_version))
+    redraws = joint_redraws(rule)
+    rows = [draw_start(spec, terrain, episode_rng(spec.name, family, level, seed, e, protocol_version=protocol_version),
+                       redraws, start_name(family, level, seed, e))
             for e in episodes]
     return FallenStarts(
         base_pos=np.array([r[0] for r in rows]),
@@ -193,4 +238,5 @@ def draw_starts(spec: RobotSpec, terrain, family: str, level: int, seed: int, ep
         kinds=[r[3] for r in rows],
         cell=(spec, terrain, family, int(level), int(seed), tuple(episodes)),
         attempts=np.zeros(len(episodes), dtype=int),
+        redraws=redraws,
     )

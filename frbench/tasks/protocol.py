@@ -13,10 +13,14 @@ from frbench.control import CONTROL_DT  # noqa: F401  (the control period [s] is
 #: "Protocol 1.3").
 PROTOCOL_VERSION = "1.3"
 #: Every protocol version whose results the leaderboard accepts.
-KNOWN_PROTOCOL_VERSIONS = ("1.0", "1.1", "1.2", "1.3")
+KNOWN_PROTOCOL_VERSIONS = ("1.0", "1.1", "1.2", "1.3", "1.4")
 #: The earliest protocol whose episodes this code reproduces (`frbench verify`): 1.3 added PhysX cells and the
 #: humanoid grid and changed no MuJoCo or PyBullet episode of 1.2; 1.2 changed learned policies' inference.
 REPRODUCED_FROM = "1.2"
+#: The first protocol whose starts are redrawn until their links are free of each other (docs/protocol.md,
+#: "Protocol 1.4"; `frbench.tasks.initial_states.joint_redraws`): earlier protocols kept the last of 50 redraws,
+#: overlapping or not.
+FREE_STARTS_PROTOCOL = "1.4"
 #: The first protocol whose grids hold PhysX cells.
 PHYSX_PROTOCOL = "1.3"
 #: The version in the starts' random key (`frbench.tasks.initial_states.episode_rng`): 1.2 changed no start, so it

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from frbench.tasks.initial_states import FallenStarts, draw_start, episode_rng
+from frbench.tasks.initial_states import FallenStarts, draw_start, episode_rng, start_name
 
 #: Screening rounds before giving up (a start still upright after this many redraws is kept and counted).
 MAX_SCREEN_ROUNDS = 8
@@ -24,12 +24,14 @@ MAX_SCREEN_ROUNDS = 8
 
 def redraw(starts: FallenStarts, mask: np.ndarray) -> None:
     """Replace, in place, the rows of ``starts`` where ``mask`` (N,) is True by their episode's next draw
-    (``attempts`` counts the redraws of each row)."""
+    (``attempts`` counts the redraws of each row), under the starts' joint-redraw rule (``redraws``)."""
     spec, terrain, family, level, seed, episodes = starts.cell
     for i in np.flatnonzero(mask):
         starts.attempts[i] += 1
-        rng = episode_rng(spec.name, family, level, seed, episodes[i], attempt=int(starts.attempts[i]))
-        starts.base_pos[i], starts.base_quat[i], starts.q[i], starts.kinds[i] = draw_start(spec, terrain, rng)
+        attempt = int(starts.attempts[i])
+        rng = episode_rng(spec.name, family, level, seed, episodes[i], attempt=attempt)
+        starts.base_pos[i], starts.base_quat[i], starts.q[i], starts.kinds[i] = draw_start(
+            spec, terrain, rng, starts.redraws, start_name(family, level, seed, episodes[i], attempt))
 
 
 def screen_starts(task, starts: FallenStarts, settle_steps: int) -> FallenStarts:

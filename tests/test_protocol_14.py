@@ -1,0 +1,93 @@
+"""Protocol 1.4: a start's joint angles are redrawn until its links are free of each other (at most
+`MAX_FREE_REDRAWS` redraws, an error beyond), where protocols up to 1.3 kept the last of 50 redraws
+(docs/protocol.md, "Protocol 1.4")."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from frbench.backends.self_collision import self_intersects
+from frbench.errors import FrbenchError
+from frbench.robots.registry import get_robot
+from frbench.tasks import initial_states
+from frbench.tasks.initial_states import JointRedraws, draw_starts, joint_redraws
+from frbench.tasks.protocol import FREE_STARTS_PROTOCOL, KNOWN_PROTOCOL_VERSIONS
+from frbench.terrains import make_terrain
+
+#: Starts of the grids whose 51 joint draws all overlap (tools/start_overlap_audit.py) and the number of joint
+#: draws `self_intersects` tests for each under 1.3 (50, the 51st kept untested) and under 1.4 (the first free).
+OVERLAPPING_UNDER_13 = {
+    ("icub", "flat", 1, 0, 0): 72,
+    ("talos", "flat", 1, 0, 0): 129,
+    ("mini_cheetah", "rough", 1, 1, 1): 59,
+    ("mini_cheetah", "stairs", 5, 2, 1): 62,
+}
+#: Cells whose starts no rule changes: a standard quadruped, the unseen mini_cheetah's cell without an exhausted
+#: start, and the G1 of the humanoid grid.
+UNCHANGED_CELLS = (("go2", "stairs", 10, 3), ("mini_cheetah", "flat", 1, 0), ("g1", "slopes", 5, 2))
+
+
+def _starts(robot, family, level, seed, episodes, rule):
+    return draw_starts(get_robot(robot), make_terrain(family, level, seed), family, level, seed, episodes, rule=rule)
+
+
+def _counting_draws(monkeypatch) -> list[int]:
+    tested = [0]
+
+    def counting(spec, q):
+        tested[0] += 1
+        return self_intersects(spec, q)
+
+    monkeypatch.setattr(initial_states, "self_intersects", counting)
+    return tested
+
+
+def test_the_rule_depends_on_the_protocol_version():
+    assert "1.4" in KNOWN_PROTOCOL_VERSIONS and FREE_STARTS_PROTOCOL == "1.4"
+    assert [joint_redraws(v) for v in ("1.0", "1.2", "1.3")] == [JointRedraws(50, False)] * 3
+    assert joint_redraws("1.4") == JointRedraws(5000, True)
+
+
+@pytest.mark.parametrize("start", OVERLAPPING_UNDER_13, ids=lambda s: "-".join(map(str, s)))
+def test_a_start_that_overlapped_under_13_is_free_under_14(start, monkeypatch):
+    robot, family, level, seed, episode = start
+    tested = _counting_draws(monkeypatch)
+    old = _starts(robot, family, level, seed, [episode], "1.3")
+    assert tested[0] == 50 and self_intersects(get_robot(robot), old.q[0])
+    tested[0] = 0
+    new = _starts(robot, family, level, seed, [episode], "1.4")
+    assert tested[0] == OVERLAPPING_UNDER_13[start] and not self_intersects(get_robot(robot), new.q[0])
+    # the fall kind and orientation come before the joints: only the joint angles and the drop height change
+    assert new.kinds == old.kinds and np.array_equal(new.base_quat, old.base_quat)
+    assert not np.array_equal(new.q, old.q) and np.array_equal(new.base_pos[:, :2], old.base_pos[:, :2])
+
+
+@pytest.mark.parametrize("cell", UNCHANGED_CELLS, ids=lambda c: "-".join(map(str, c)))
+def test_starts_that_never_exhausted_the_redraws_are_bit_identical(cell):
+    old, new = _starts(*cell, range(3), "1.3"), _starts(*cell, range(3), "1.4")
+    for name in ("base_pos", "base_quat", "q"):
+        assert np.array_equal(getattr(old, name), getattr(new, name))
+    assert old.kinds == new.kinds
+
+
+def test_a_start_still_overlapping_after_the_budget_is_a_one_line_error(monkeypatch):
+    monkeypatch.setattr(initial_states, "MAX_FREE_REDRAWS", 10)
+    with pytest.raises(FrbenchError) as raised:
+        _starts("talos", "flat", 1, 0, [0], "1.4")
+    message = str(raised.value)
+    assert "\n" not in message
+    assert message.startswith("start of talos flat level 1 seed 0 episode 0: its links overlap in every one of 11 "
+                              "joint draws")
+
+
+def test_the_screenings_redraws_follow_the_starts_rule():
+    from frbench.tasks.start_screening import redraw
+
+    starts = _starts("mini_cheetah", "flat", 1, 1, [0, 1], "1.4")
+    redraw(starts, np.array([True, False]))
+    redraw(starts, np.array([True, False]))
+    redraw(starts, np.array([True, False]))  # attempt 3 of episode 0 exhausts 50 redraws
+    assert starts.attempts.tolist() == [3, 0] and starts.redraws == JointRedraws(5000, True)
+    assert not self_intersects(get_robot("mini_cheetah"), starts.q[0])
+
