@@ -91,3 +91,72 @@ def test_the_screenings_redraws_follow_the_starts_rule():
     assert starts.attempts.tolist() == [3, 0] and starts.redraws == JointRedraws(5000, True)
     assert not self_intersects(get_robot("mini_cheetah"), starts.q[0])
 
+
+# --------------------------------------------------------------------------- a 1.4 record reusing a 1.3 record
+
+
+def _reuse_pair():
+    """A 1.3 record (go2, 64 episodes in three simulators) and 1.4 results holding its episodes but two, re-run."""
+    import copy
+    import sys
+    from pathlib import Path
+
+    from frbench.leaderboard.records import build_record
+    from frbench.leaderboard.reuse import episode_key, reused_field
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from test_protocol_13 import _fields, rebuilt, three_simulator_results
+
+    results = three_simulator_results()
+    source = build_record(results, _fields(results))
+    new = copy.deepcopy(results)
+    rerun = []
+    for episode in (new["episodes"][0], new["episodes"][-1]):
+        episode["success"], episode["time_to_recover"] = not episode["success"], None
+        rerun.append(episode_key(episode))
+    new = rebuilt(new, "1.4")
+    new["reused"] = reused_field(source, ["mujoco", "pybullet", "physx"], rerun)
+    return source, new, rerun
+
+
+def test_a_14_record_reuses_every_episode_of_its_13_record_but_the_re_run_ones():
+    from frbench.leaderboard.results import check_results
+    from frbench.leaderboard.reuse import check_against_source, check_reused
+
+    source, new, rerun = _reuse_pair()
+    reused = new["reused"]
+    assert reused["episodes"] == 96 - 2 and reused["rerun"] == sorted(list(key) for key in rerun)
+    assert rerun[0] == ("go2", "mujoco", "flat", 1, 0, 0)
+    check_results(new)
+    check_against_source(new, source)
+    # a reused episode changed: refused; a re-run key that is no episode of the results: refused
+    edited = {**new, "episodes": [dict(e) for e in new["episodes"]]}
+    edited["episodes"][1]["initial_pose"] = "prone"
+    with pytest.raises(FrbenchError, match=r"^reused\.episodes_sha256: the results' episodes of mujoco, pybullet, "
+                                           r"physx except the 2 re-run have another checksum$"):
+        check_reused(edited)
+    wrong = {**new, "reused": {**reused, "rerun": [*reused["rerun"], ["go2", "mujoco", "flat", 1, 0, 9]]}}
+    with pytest.raises(FrbenchError, match=r"^reused\.rerun: go2 mujoco flat 1 0 9 is not an episode of the "):
+        check_reused(wrong)
+
+
+def test_the_re_score_finds_the_changed_episodes_of_a_record():
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tools"))
+    from rescore_starts import StartDraws, changed_episodes
+
+    def episode(robot, terrain, level, seed, number, redraws=0):
+        return {"robot": robot, "backend": "mujoco", "terrain": terrain, "level": level, "seed": seed,
+                "episode": number, "start_redraws": redraws}
+
+    results = {"episodes": [
+        episode("mini_cheetah", "rough", 1, 1, 1),     # its first draw exhausts 50 redraws
+        episode("mini_cheetah", "flat", 1, 1, 0, 2),   # attempts 0-2 are free within 50 redraws
+        episode("mini_cheetah", "flat", 1, 1, 0, 3),   # its screening's attempt 3 exhausts them
+        episode("go2", "stairs", 10, 3, 2, 8),
+        episode("g1", "flat", 1, 0, 0),
+    ]}
+    assert changed_episodes(results, StartDraws()) == [("mini_cheetah", "mujoco", "rough", 1, 1, 1),
+                                                       ("mini_cheetah", "mujoco", "flat", 1, 1, 0)]

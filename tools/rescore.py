@@ -175,6 +175,26 @@ class Job:
         return target
 
 
+def write_reusing_results(job: Job, target: Path, request, fresh: list[dict], backends, rerun=()) -> Path:
+    """Write ``target``: the results of ``request`` (an `EvaluationRequest` of the target protocol) holding the
+    ``fresh`` episodes and the job's source record's episodes of ``backends`` except ``rerun`` (episode keys)
+    unchanged, with the ``reused`` field that names them (`frbench.leaderboard.reuse`); checked like a submission
+    and against the source record."""
+    from frbench.evaluation.grid import build_results, validate
+    from frbench.io import atomic_write_text
+    from frbench.leaderboard.results import check_results
+    from frbench.leaderboard.reuse import check_against_source, episode_key, reused_episodes, reused_field
+
+    policy = validate(request)
+    episodes = sorted(reused_episodes(job.record, backends, rerun) + list(fresh), key=episode_key)
+    results = build_results(request, policy, episodes, code=job.meta()["frbench"])
+    results["reused"] = reused_field(job.record, backends, rerun)
+    check_results(results)
+    check_against_source(results, job.record)
+    atomic_write_text(target, json.dumps(results, indent=1) + "\n")
+    return target
+
+
 def run_logged_chunk(job: Job, grid: str, chunk: tuple) -> float:
     """Run one chunk of ``job`` and log it (record, grid, robot, backend, terrain, cells, successes, seconds)."""
     took = job.run_chunk(grid, chunk)
@@ -254,6 +274,14 @@ def submit_finished(out: Path, board: Path, origin=protocol_suffix) -> int:
         print(f"submitted {source['name']}: record {done.record['id'][:12]} ({done.record['track']})")
         submitted += 1
     print(f"{submitted} record(s) submitted")
+    return 0
+
+
+def print_status(jobs, progress) -> int:
+    """Print one line per job: its name, ``progress(job)`` (e.g. ``3/12 chunks``) and whether its results.json is
+    written; returns 0."""
+    for job in jobs:
+        print(f"{job.name:<28} {progress(job)}" + (", results.json" if (job.folder / "results.json").is_file() else ""))
     return 0
 
 

@@ -38,9 +38,11 @@ from rescore import (  # noqa: E402
     chunk_path,
     job_arguments,
     log,
+    print_status,
     run_logged_chunk,
     single_threaded,
     submit_finished,
+    write_reusing_results,
 )
 
 DEFAULT_OUT = ROOT / "runs" / "rescore-1.3"
@@ -94,25 +96,14 @@ class PhysxJob(Job):
     def assemble_physx(self) -> Path | None:
         """Write ``results.json`` (protocol 1.3) once every chunk is there; None while some are missing. Its
         MuJoCo and PyBullet episodes are the source record's, checked by their checksum (``reused``)."""
-        from frbench.evaluation.grid import EvaluationRequest, build_results, validate
-        from frbench.io import atomic_write_text
-        from frbench.leaderboard.results import check_results
-        from frbench.leaderboard.reuse import EPISODE_ORDER, check_against_source, reused_episodes, reused_field
+        from frbench.evaluation.grid import EvaluationRequest
 
         target = self.folder / "results.json"
         if target.is_file() or any(self.pending(grid) for grid in GRIDS):
             return target if target.is_file() else None
         request = EvaluationRequest(policy=self.reference, grid=list(GRIDS), jobs=1,
                                     protocol_version=TARGET_PROTOCOL)
-        policy = validate(request)
-        episodes = reused_episodes(self.record, REUSED) + episodes_of(self)
-        episodes.sort(key=lambda e: tuple(e[k] for k in EPISODE_ORDER))
-        results = build_results(request, policy, episodes, code=self.meta()["frbench"])
-        results["reused"] = reused_field(self.record, REUSED)
-        check_results(results)
-        check_against_source(results, self.record)
-        atomic_write_text(target, json.dumps(results, indent=1) + "\n")
-        return target
+        return write_reusing_results(self, target, request, episodes_of(self), REUSED)
 
 
 def _in_physx(cell):
@@ -142,11 +133,7 @@ def main(argv: list[str] | None = None) -> int:
     jobs = [PhysxJob(r, args.board, args.out) for r in main_board(args.board)
             if not only or r["submission"]["name"] in only]
     if args.status:
-        for job in jobs:
-            done, total = job.done()
-            print(f"{job.name:<28} {done}/{total} chunks"
-                  + (", results.json" if (job.folder / "results.json").is_file() else ""))
-        return 0
+        return print_status(jobs, lambda job: "{}/{} chunks".format(*job.done()))
     if args.assemble:
         for job in jobs:
             if job.assemble_physx() is not None:

@@ -1,13 +1,17 @@
 """Results that reuse another record's episodes, and the proof that they are that record's.
 
-A new protocol version that adds a simulator to the grids (1.3: PhysX) leaves the other simulators' cells as
-they were: the same starts, terrains, physics and policy give bit-identical episodes. A 1.3 record of a policy
-therefore holds its 1.2 record's MuJoCo and PyBullet episodes unchanged beside its new PhysX episodes
-(tools/rescore_physx.py), and says so in its results' ``reused`` field:
+A new protocol version that leaves some episodes as they were (the same starts, terrains, physics and policy give
+bit-identical episodes) lets a record of a policy hold its earlier record's episodes unchanged beside the new ones:
+a 1.3 record holds its 1.2 record's MuJoCo and PyBullet episodes beside its new PhysX episodes
+(tools/rescore_physx.py); a 1.4 record holds its 1.3 record's episodes except those whose start 1.4 redraws
+(tools/rescore_starts.py). Its results say so in their ``reused`` field:
 
 * ``record``: the id of the record whose episodes it reuses, ``protocol_version``: that record's version;
-* ``backends``: the simulators whose episodes are reused (every one of their episodes in the results);
-* ``episodes`` and ``episodes_sha256``: their number and `episodes_sha256` of them.
+* ``backends``: the simulators whose episodes are reused (every one of their episodes in the results, except
+  ``rerun``);
+* ``rerun`` (optional): the episodes of those simulators that ran again, each as (robot, backend, terrain, level,
+  seed, episode), neither reused nor counted;
+* ``episodes`` and ``episodes_sha256``: the number of reused episodes and `episodes_sha256` of them.
 
 `check_reused` (run by `frbench.leaderboard.results.check_results` on every results object) checks that the
 results' episodes of those simulators are the ones the checksum names; `check_against_source` checks that the
@@ -30,34 +34,51 @@ from frbench.tasks.protocol import version_key
 EPISODE_ORDER = ("robot", "backend", "terrain", "level", "seed", "episode")
 
 
-def _ordered(episodes: Sequence[Mapping], backends: Sequence[str]) -> list[Mapping]:
-    chosen = [e for e in episodes if e["backend"] in backends]
-    return sorted(chosen, key=lambda e: tuple(e[k] for k in EPISODE_ORDER))
+def episode_key(episode: Mapping) -> tuple:
+    """An episode's identity: its values of `EPISODE_ORDER`."""
+    return tuple(episode[k] for k in EPISODE_ORDER)
 
 
-def episodes_sha256(episodes: Sequence[Mapping], backends: Sequence[str]) -> str:
+def _ordered(episodes: Sequence[Mapping], backends: Sequence[str], rerun: Sequence[Sequence] = ()) -> list[Mapping]:
+    left_out = {tuple(key) for key in rerun}
+    chosen = [e for e in episodes if e["backend"] in backends and episode_key(e) not in left_out]
+    return sorted(chosen, key=episode_key)
+
+
+def episodes_sha256(episodes: Sequence[Mapping], backends: Sequence[str], rerun: Sequence[Sequence] = ()) -> str:
     """The sha256 of the canonical JSON (`frbench.leaderboard.jsonfile.canonical_json`) of the list of
-    ``episodes`` whose backend is one of ``backends``, in `EPISODE_ORDER`."""
-    return hashlib.sha256(canonical_json(_ordered(episodes, backends)).encode("ascii")).hexdigest()
+    ``episodes`` whose backend is one of ``backends`` and whose key (`episode_key`) is not in ``rerun``, in
+    `EPISODE_ORDER`."""
+    return hashlib.sha256(canonical_json(_ordered(episodes, backends, rerun)).encode("ascii")).hexdigest()
 
 
-def reused_field(source: Mapping, backends: Sequence[str]) -> dict:
-    """The ``reused`` field of results that take the episodes of ``backends`` from the record ``source``."""
+def reused_field(source: Mapping, backends: Sequence[str], rerun: Sequence[Sequence] = ()) -> dict:
+    """The ``reused`` field of results that take the episodes of ``backends`` from the record ``source``, except
+    the episodes ``rerun`` (keys, `episode_key`: listed in the field, sorted, when there are any)."""
     episodes = source["results"]["episodes"]
-    return {"record": source["id"], "protocol_version": source["results"]["protocol_version"],
-            "backends": list(backends), "episodes": len(_ordered(episodes, backends)),
-            "episodes_sha256": episodes_sha256(episodes, backends)}
+    field = {"record": source["id"], "protocol_version": source["results"]["protocol_version"],
+             "backends": list(backends)}
+    if rerun:
+        field["rerun"] = [list(key) for key in sorted({tuple(key) for key in rerun})]
+    return {**field, "episodes": len(_ordered(episodes, backends, rerun)),
+            "episodes_sha256": episodes_sha256(episodes, backends, rerun)}
 
 
-def reused_episodes(source: Mapping, backends: Sequence[str]) -> list[dict]:
-    """The episodes of ``backends`` in the record ``source``, in `EPISODE_ORDER` (copies)."""
-    return [dict(e) for e in _ordered(source["results"]["episodes"], backends)]
+def reused_episodes(source: Mapping, backends: Sequence[str], rerun: Sequence[Sequence] = ()) -> list[dict]:
+    """The episodes of ``backends`` in the record ``source``, except ``rerun``, in `EPISODE_ORDER` (copies)."""
+    return [dict(e) for e in _ordered(source["results"]["episodes"], backends, rerun)]
+
+
+def _described(reused: Mapping) -> str:
+    rerun = reused.get("rerun", [])
+    return ", ".join(reused["backends"]) + (f" except the {len(rerun)} re-run" if rerun else "")
 
 
 def check_reused(results: Mapping) -> None:
     """When ``results`` has a ``reused`` field: its simulators are among the results' backends, its source is of
-    an earlier protocol, and the results' episodes of those simulators are as many as it says and have its
-    checksum (a `ResultsError` naming the field otherwise)."""
+    an earlier protocol, every ``rerun`` episode is one of the results' of those simulators, and the results'
+    other episodes of those simulators are as many as it says and have its checksum (a `ResultsError` naming the
+    field otherwise)."""
     reused = results.get("reused")
     if reused is None:
         return
@@ -67,13 +88,19 @@ def check_reused(results: Mapping) -> None:
     if version_key(reused["protocol_version"]) >= version_key(results["protocol_version"]):
         raise ResultsError(f"reused.protocol_version: {reused['protocol_version']} is not earlier than the results' "
                            f"{results['protocol_version']}")
-    count = len(_ordered(results["episodes"], reused["backends"]))
+    rerun = reused.get("rerun", [])
+    held = {episode_key(e) for e in _ordered(results["episodes"], reused["backends"])}
+    absent = [key for key in rerun if tuple(key) not in held]
+    if absent:
+        raise ResultsError(f"reused.rerun: {' '.join(map(str, absent[0]))} is not an episode of the results' "
+                           f"{', '.join(reused['backends'])}")
+    count = len(_ordered(results["episodes"], reused["backends"], rerun))
     if count != reused["episodes"]:
         raise ResultsError(f"reused.episodes: {reused['episodes']} but the results hold {count} episodes of "
-                           f"{', '.join(reused['backends'])}")
-    if episodes_sha256(results["episodes"], reused["backends"]) != reused["episodes_sha256"]:
-        raise ResultsError("reused.episodes_sha256: the results' episodes of "
-                           f"{', '.join(reused['backends'])} have another checksum")
+                           f"{_described(reused)}")
+    if episodes_sha256(results["episodes"], reused["backends"], rerun) != reused["episodes_sha256"]:
+        raise ResultsError(f"reused.episodes_sha256: the results' episodes of {_described(reused)} have another "
+                           "checksum")
 
 
 def check_against_source(results: Mapping, source: Mapping) -> None:
@@ -85,9 +112,10 @@ def check_against_source(results: Mapping, source: Mapping) -> None:
     if source["results"]["protocol_version"] != reused["protocol_version"]:
         raise ResultsError(f"reused.protocol_version: {reused['protocol_version']} but record "
                            f"{source['id'][:12]} is of protocol {source['results']['protocol_version']}")
-    if episodes_sha256(source["results"]["episodes"], reused["backends"]) != reused["episodes_sha256"]:
-        raise ResultsError(f"reused.episodes_sha256: record {source['id'][:12]}'s episodes of "
-                           f"{', '.join(reused['backends'])} have another checksum")
+    rerun = reused.get("rerun", [])
+    if episodes_sha256(source["results"]["episodes"], reused["backends"], rerun) != reused["episodes_sha256"]:
+        raise ResultsError(f"reused.episodes_sha256: record {source['id'][:12]}'s episodes of {_described(reused)} "
+                           "have another checksum")
 
 
 def check_board_reuse(records: Sequence[Mapping]) -> list[str]:
