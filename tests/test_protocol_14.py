@@ -160,3 +160,30 @@ def test_the_re_score_finds_the_changed_episodes_of_a_record():
     ]}
     assert changed_episodes(results, StartDraws()) == [("mini_cheetah", "mujoco", "rough", 1, 1, 1),
                                                        ("mini_cheetah", "mujoco", "flat", 1, 1, 0)]
+
+
+def test_the_humanoid_job_adopts_an_earlier_protocols_chunks_whose_starts_are_unchanged(tmp_path):
+    import json
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tools"))
+    from humanoid_records import GRID, HumanoidJob
+    from rescore import chunk_path
+    from rescore_starts import StartDraws
+
+    earlier, out = tmp_path / "humanoid-1.3", tmp_path / "humanoid-1.4"
+    old, new = HumanoidJob("zero", earlier, "1.3"), HumanoidJob("zero", out, "1.4")
+    old.meta()
+    chosen = [c for c in old.chunks[GRID] if c[:3] in (("g1", "mujoco", "flat"), ("icub", "mujoco", "flat"))]
+    for robot, backend, family, cells in chosen:
+        episodes = [{"robot": robot, "backend": backend, "terrain": family, "level": c.level, "seed": c.seed,
+                     "episode": e, "start_redraws": 0, "success": False} for c in cells for e in range(c.episodes)]
+        document = {"cells": [list(c.key()) for c in cells], "episodes": episodes}
+        chunk_path(earlier, "zero", GRID, robot, backend, family).parent.mkdir(parents=True, exist_ok=True)
+        chunk_path(earlier, "zero", GRID, robot, backend, family).write_text(json.dumps(document))
+    taken = new.adopt(earlier, StartDraws("1.3", "1.4"))
+    # the G1's starts are the same under both protocols; iCub's flat starts are redrawn under 1.4
+    assert [p.name for p in taken] == ["humanoid-g1-mujoco-flat.json"]
+    assert json.loads(taken[0].read_text())["adopted_from"] == "1.3"
+    assert len(new.pending(GRID)) == len(new.chunks[GRID]) - 1

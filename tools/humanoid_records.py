@@ -19,6 +19,15 @@ last, or alone with ``--only mpc``::
     .venv/bin/python tools/humanoid_records.py --protocol 1.3 --status
     .venv/bin/python tools/humanoid_records.py --protocol 1.3 --submit
 
+``--adopt EARLIER`` (e.g. ``runs/humanoid-1.3``) takes each pending chunk that a job of an earlier protocol wrote
+under ``EARLIER/<policy>/chunks/`` when every start of its episodes (the first draw and each screening redraw an
+episode used) is drawn the same under both protocols (`rescore_starts.StartDraws`): nothing else of a cell reads
+the protocol, so such a chunk's episodes are this protocol's, bit for bit. Under 1.4 that is every G1 chunk of 1.3
+(the G1's starts are unchanged, docs/protocol.md, "Protocol 1.4") and no iCub or Talos chunk with a redrawn start;
+the copy names its origin (``adopted_from``) and the log says which chunks were taken::
+
+    .venv/bin/python tools/humanoid_records.py --only mpc --adopt runs/humanoid-1.3 --status   # adopt, then run without --status
+
 OUT is ``--out``, else ``runs/humanoid-<protocol>``. The job machinery (chunk files, the meta file, the log,
 single-threaded runs, submission) is tools/rescore.py's.
 """
@@ -107,6 +116,34 @@ class HumanoidJob(rescore.Job):
         return target
 
 
+    def adopt(self, earlier: Path, draws) -> list[Path]:
+        """Copy each pending chunk an earlier protocol's job wrote under ``earlier`` whose cells are this chunk's and
+        whose episodes' starts ``draws`` (a `rescore_starts.StartDraws` of the two protocols) finds unchanged;
+        returns the chunk files written."""
+        from frbench.io import atomic_write_text
+        from frbench.tasks.protocol import version_key
+
+        meta_path = earlier / self.name / "meta.json"
+        if not meta_path.is_file():
+            return []
+        version = json.loads(meta_path.read_text())["protocol_version"]
+        if version_key(version) >= version_key(self.version):
+            raise SystemExit(f"--adopt {earlier}: its chunks are of protocol {version}, not earlier than {self.version}")
+        taken = []
+        for chunk in self.pending(GRID):
+            source = rescore.chunk_path(earlier, self.name, GRID, *chunk[:3])
+            if not source.is_file():
+                continue
+            document = json.loads(source.read_text())
+            same_cells = document["cells"] == [list(c.key()) for c in chunk[3]]
+            if same_cells and all(draws.unchanged(e["robot"], e["terrain"], e["level"], e["seed"], e["episode"], a)
+                                  for e in document["episodes"] for a in range(e["start_redraws"] + 1)):
+                target = rescore.chunk_path(self.out, self.name, GRID, *chunk[:3])
+                atomic_write_text(target, json.dumps({**document, "adopted_from": version}) + "\n")
+                taken.append(target)
+        return taken
+
+
 def run(jobs: list[HumanoidJob], out: Path, max_chunks: int = 0) -> int:
     """Run every pending chunk of ``jobs`` in order (at most ``max_chunks``, 0: all), assembling each policy's
     results when its chunks are complete."""
@@ -137,6 +174,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--protocol", default=PROTOCOL_VERSION,
                         help=f"the protocol whose humanoid grid runs (default: the current one, {PROTOCOL_VERSION})")
     parser.add_argument("--max-chunks", type=int, default=0, help=rescore.MAX_CHUNKS_HELP)
+    parser.add_argument("--adopt", type=Path, default=None,
+                        help="an earlier protocol's OUT: take its chunks whose starts this protocol draws the same")
     args = parser.parse_args(argv)
     grid_parts(GRID, args.protocol)  # a protocol without the humanoid grid: one line, before anything is made
     out = args.out or default_out(args.protocol)
@@ -145,6 +184,16 @@ def main(argv: list[str] | None = None) -> int:
         return rescore.submit_finished(out, args.board, description_suffix)
     policies = [n for n in args.only.split(",") if n] or list(POLICIES)
     jobs = [HumanoidJob(policy, out, args.protocol) for policy in policies]
+    if args.adopt is not None:
+        from rescore_starts import StartDraws
+
+        for job in jobs:
+            earlier = args.adopt / job.name / "meta.json"
+            if earlier.is_file():
+                job.meta()
+                draws = StartDraws(json.loads(earlier.read_text())["protocol_version"], args.protocol)
+                for path in job.adopt(args.adopt, draws):
+                    rescore.log(out, f"{job.name}: {path.name} adopted from {args.adopt}")
     if args.status:
         for job in jobs:
             done, total = job.done()
