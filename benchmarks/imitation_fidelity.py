@@ -8,6 +8,10 @@ the same observations at every control step ("shadowing"). Its observation's pre
   training env's DAgger episodes, or
 * ``own``: the learner's own previous action, as when it drives the robot itself.
 
+A third measure lets the learner drive and ``scripted`` label (DAgger's later rounds, a kickstarting term on
+the learner's rows): ``drives`` is the same error on the learner's own episodes, the teacher running beside it
+on its own clock (its phase, its ramps), so its label need not be what it would do from the learner's state.
+
 The printed error is the mean absolute difference [rad] between the learner's and the teacher's joint targets
 over all joints, steps and episodes. A learner that imitates by copying its previous action (the "copycat"
 shortcut: ``scripted``'s targets move by small ramps, so the previous action predicts the next one almost
@@ -33,13 +37,14 @@ from frbench.training.dagger import teacher_label
 
 
 class Shadow:
-    """``scripted`` acts; ``learner`` is asked on the same observations and its errors [rad] are kept (N per
-    step). ``fed``: the learner's previous action is set to the executed one (`teacher_label`)."""
+    """``scripted`` acts (or, ``drives``, the learner does); the other is asked on the same observations and the
+    target errors [rad] are kept (N per step). ``fed``: the learner's previous action is set to the executed one
+    (`teacher_label`)."""
 
     joint_frame = "robot"
 
-    def __init__(self, learner, fed: bool):
-        self.teacher, self.learner, self.fed = load_policy("scripted"), learner, fed
+    def __init__(self, learner, fed: bool, drives: bool = False):
+        self.teacher, self.learner, self.fed, self.drives = load_policy("scripted"), learner, fed, drives
         self.errors: list[np.ndarray] = []
 
     def supports(self, spec) -> bool:
@@ -57,6 +62,8 @@ class Shadow:
         else:
             learner = self.frame.targets(self.learner.act(self.frame.observation(obs)))
         self.errors.append(np.abs(teacher - learner).mean(axis=1))
+        if self.drives:
+            return learner
         if self.fed:  # the executed action, in the learner's frame and units, as its previous action
             self.learner.action = teacher_label(teacher, self.learner.default_pose, self.frame,
                                                 self.learner.action_scale)
@@ -71,11 +78,12 @@ def fidelity(checkpoint: str, robot: str, terrain_name: str, level: int, episode
         raise SystemExit(f"{checkpoint}: a residual policy; this measures a plain learned policy")
     terrain = make_terrain(terrain_name, level, 0)
     row = {}
-    for fed in (True, False):
-        shadow = Shadow(learner, fed)
+    modes = {"fed": dict(fed=True), "own": dict(fed=False), "drives": dict(fed=False, drives=True)}
+    for name, mode in modes.items():
+        shadow = Shadow(learner, **mode)
         starts = draw_starts(spec, terrain, terrain_name, level, 0, range(episodes))
         run_episodes(spec, "mujoco", terrain, starts, shadow, seed=0, check=False)
-        row["fed" if fed else "own"] = float(np.mean(shadow.errors))
+        row[name] = float(np.mean(shadow.errors))
     starts = draw_starts(spec, terrain, terrain_name, level, 0, range(episodes))
     task = run_episodes(spec, "mujoco", terrain, starts, learner, seed=0)
     row["success"] = int(np.sum(task.success.success))
@@ -90,10 +98,13 @@ def main() -> None:
     parser.add_argument("--level", type=int, default=1)
     parser.add_argument("--episodes", type=int, default=4)
     args = parser.parse_args()
-    print(f"{'checkpoint':48s} {'fed [rad]':>10s} {'own [rad]':>10s} {'own success':>12s}")
+    print(f"target error [rad] on {args.robot}, {args.terrain} level {args.level}, MuJoCo, {args.episodes} starts "
+          "of seed 0")
+    print(f"{'checkpoint':40s} {'fed':>7s} {'own':>7s} {'drives':>7s} {'own success':>12s}")
     for checkpoint in args.checkpoints:
         row = fidelity(checkpoint, args.robot, args.terrain, args.level, args.episodes)
-        print(f"{checkpoint:48s} {row['fed']:10.3f} {row['own']:10.3f} {row['success']:>7d}/{args.episodes}")
+        print(f"{checkpoint:40s} {row['fed']:7.3f} {row['own']:7.3f} {row['drives']:7.3f} "
+              f"{row['success']:>8d}/{args.episodes}")
 
 
 if __name__ == "__main__":

@@ -22,15 +22,20 @@ from frbench.training.presets import KICKSTART_SCRIPTED, PRESETS
 def test_the_presets_schedule_numbers():
     cfg = TrainEnvConfig(**KICKSTART_SCRIPTED)
     s = cfg.imitation_schedule()
-    assert [s.round_at(x) for x in (0, 0.999e6, 1e6, 2e6, 2.999e6, 3e6, 20e6)] == [0, 0, 1, 2, 2, None, None]
-    assert [s.imitation_weight(x) for x in (0, 2.9e6, 3e6, 7.5e6, 10.5e6, 12e6, 30e6)] == pytest.approx(
-        [1.0, 1.0, 1.0, 0.5, 1 / 6, 0.0, 0.0])
-    assert [s.rl_weight(x) for x in (0, 2.999e6, 3e6, 12e6)] == [0.0, 0.0, 1.0, 1.0]
+    assert [s.round_at(x) for x in (0, 1.999e6, 2e6, 20e6)] == [0, 0, None, None]
+    assert [s.imitation_weight(x) for x in (0, 1.9e6, 2e6, 7e6, 10e6, 12e6, 30e6)] == pytest.approx(
+        [1.0, 1.0, 1.0, 0.5, 0.2, 0.0, 0.0])
+    assert [s.rl_weight(x) for x in (0, 1.999e6, 2e6, 12e6)] == [0.0, 0.0, 1.0, 1.0]
     assert cfg.dagger_noise == 0.2  # DART: the teacher acts with 0.2 rad of noise
-    assert s.acts(0, 5, 64).all()  # round 0: behaviour cloning
-    round1 = np.mean([s.acts(1.5e6, e, 256).mean() for e in range(40)])
-    assert round1 == pytest.approx(0.25, abs=0.02)
-    assert not s.acts(3e6, 50, 64).any()
+    assert s.acts(0, 5, 64).all()  # behaviour cloning
+    decay = np.mean([s.acts(5e6, e, 256).mean() for e in range(40)])
+    assert decay == pytest.approx(0.25, abs=0.02)  # the teacher goes on acting in a quarter of the episodes
+    assert not s.acts(12e6, 50, 64).any()
+    acting = s.acts(5e6, 3, 64)
+    imitation, rl = s.row_weights(5e6, acting)  # weight 0.7 at 5 M, on the teacher's rows only
+    assert np.array_equal(imitation, np.where(acting, 0.7, 0.0)) and np.array_equal(rl, np.where(acting, 0.0, 1.0))
+    every_row = TrainEnvConfig(**{**KICKSTART_SCRIPTED, "imitate_rows": "all"}).imitation_schedule()
+    assert np.allclose(every_row.row_weights(5e6, acting)[0], 0.7)
     assert PRESETS["kickstart-scripted"].train_overrides()["algorithm"]["class_name"].endswith(":KickstartPPO")
 
 
@@ -47,6 +52,10 @@ def test_the_dagger_draw_is_distills_rule_and_bad_values_name_their_field():
         TrainEnvConfig(teacher="scripted", action_hold=2)
     with pytest.raises(ValueError, match="teacher"):
         TrainEnvConfig(teacher="mpc")
+    with pytest.raises(ValueError, match="imitate_rows"):
+        TrainEnvConfig(teacher="scripted", imitate_rows="learner")
+    with pytest.raises(ValueError, match="kickstart_beta"):
+        TrainEnvConfig(teacher="scripted", kickstart_beta=2.0)
 
 
 def test_a_label_is_the_teachers_target_in_the_canonical_frame():
@@ -172,9 +181,12 @@ def test_a_tiny_kickstart_run_trains_logs_its_weights_and_writes_a_policy_evalua
     subprocess.run(command, check=True, capture_output=True)
     progress = json.loads((run / "progress.json").read_text())
     assert [r["env_steps"] for r in progress] == [192, 384, 576, 768, 960]
-    assert [r["loss_imitation_weight"] for r in progress] == pytest.approx(
-        [1.0, 1.0, np.mean([1 - (s - 384) / 384 for s in range(384, 576, 8)]),
-         np.mean([1 - (s - 384) / 384 for s in range(576, 768, 8)]), 0.0], rel=1e-5)
+    schedule = TrainEnvConfig(**{**KICKSTART_SCRIPTED, "dagger_steps": 384, "imitation_until": 768}).imitation_schedule()
+    share = [schedule.acts(steps, steps // 192, 8).mean() for steps in (384, 576)]  # one episode per iteration
+    assert 0 < share[0] + share[1] < 2  # the teacher acts in some episodes of the decay, not all
+    assert [r["loss_imitation_weight"] for r in progress] == pytest.approx(  # on the teacher's rows only
+        [1.0, 1.0, share[0] * np.mean([1 - (s - 384) / 384 for s in range(384, 576, 8)]),
+         share[1] * np.mean([1 - (s - 384) / 384 for s in range(576, 768, 8)]), 0.0], rel=1e-5)
     assert progress[0]["loss_surrogate"] == 0.0 and progress[-1]["loss_surrogate"] != 0.0
     assert progress[0]["loss_imitation"] > 0 and progress[-1]["loss_imitation"] == 0.0
     out = tmp_path / "eval.json"

@@ -30,6 +30,9 @@ from frbench.terrains import FAMILIES
 from frbench.training.dagger import ImitationSchedule
 from frbench.training.reward_tables import reward_table
 from frbench.training.teacher import ENV_TEACHERS
+
+#: The rows the imitation term can weigh (``TrainEnvConfig.imitate_rows``).
+IMITATE_ROWS = ("all", "teacher")
 from frbench.training.rewards import RewardConfig
 
 #: Gain ranges of frbench's training (the paper: Kp [20, 80], Kd [0.6, 2.0]); see docs/training.md.
@@ -130,6 +133,11 @@ class TrainEnvConfig:
     #: Standard deviation [action units] of the Gaussian noise added to the teacher's label where it acts, drawn
     #: afresh every control step (DART; `frbench.training.teacher`); 0: the teacher acts exactly.
     dagger_noise: float = 0.0
+    #: After DAgger, until ``imitation_until``, the fraction of episodes the teacher goes on acting in (its rows
+    #: imitation rows, not PPO rows; `frbench.training.dagger.ImitationSchedule`).
+    kickstart_beta: float = 0.0
+    #: The rows the imitation term weighs: ``"all"`` or only those the ``"teacher"`` acted in.
+    imitate_rows: str = "all"
 
     def __post_init__(self) -> None:
         def set_(name: str, value) -> None:
@@ -148,7 +156,7 @@ class TrainEnvConfig:
     def imitation_schedule(self) -> ImitationSchedule:
         """The teacher's timetable (`ImitationSchedule`) from the ``dagger_*`` and ``imitation_*`` fields."""
         return ImitationSchedule(self.dagger_steps, self.dagger_rounds, self.dagger_beta, self.imitation_weight,
-                                 self.imitation_until, self.seed)
+                                 self.imitation_until, self.seed, self.kickstart_beta, self.imitate_rows == "teacher")
 
     def robot_kind(self) -> str:
         """``"quadruped"`` (randomised morphologies, or a named quadruped) or ``"humanoid"``."""
@@ -196,6 +204,7 @@ class TrainEnvConfig:
             need(self.action_hold == 1, "action_hold", "1 with a teacher (it labels every control step)")
             need(not self.base_controller, "base_controller", "none with a teacher (it labels the plain policy)")
             need(self.robot_kind() == "quadruped", "teacher", "a quadruped batch (scripted drives quadrupeds)")
+        need(self.imitate_rows in IMITATE_ROWS, "imitate_rows", f"one of {', '.join(IMITATE_ROWS)}")
         need(self.dagger_noise >= 0, "dagger_noise", "a standard deviation >= 0 [action units]")
         self.imitation_schedule()  # ValueError naming a bad dagger_* or imitation_* value
         for name in ("gain_ranges", "morphology_ranges"):

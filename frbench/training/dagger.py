@@ -19,7 +19,11 @@ Two collectors apply the rule:
 `ImitationSchedule` is the in-env collector's timetable, in env steps: DAgger for ``dagger_steps`` in
 ``dagger_rounds`` equal rounds (no reinforcement learning: the PPO surrogate and entropy terms weigh 0 and
 the imitation term ``weight``), then PPO with the imitation term's weight falling linearly from ``weight`` to
-0 at ``until`` env steps (kickstarting, Schmitt et al. 2018), then PPO alone.
+0 at ``until`` env steps (kickstarting, Schmitt et al. 2018), then PPO alone. During that decay the teacher
+may go on acting in a fraction ``kick_beta`` of the episodes; the rows it acted in are imitation rows, not PPO
+rows (their PPO weight is 0). With ``teacher_rows_only`` the imitation term weighs only the rows the teacher
+acted in, where its label is its own next action; on the learner's rows the stateful ``scripted`` runs beside
+it on its own clock and its label need not be what it would do from there (docs/training.md).
 """
 
 from __future__ import annotations
@@ -58,6 +62,9 @@ class ImitationSchedule:
         weight: the imitation term's weight during DAgger and at the start of the decay.
         until: env steps at which the weight has fallen linearly to 0 (at most ``dagger_steps``: no decay).
         seed: the seed of the rounds' draws (`teacher_acts`).
+        kick_beta: after DAgger and before ``until``, the fraction of episodes the teacher acts in (drawn as a
+            round numbered ``dagger_rounds``).
+        teacher_rows_only: the imitation term weighs only the rows the teacher acted in.
     """
 
     dagger_steps: float = 0.0
@@ -66,6 +73,8 @@ class ImitationSchedule:
     weight: float = 1.0
     until: float = 0.0
     seed: int = 0
+    kick_beta: float = 0.0
+    teacher_rows_only: bool = False
 
     def __post_init__(self) -> None:
         if self.dagger_steps < 0 or self.until < 0:
@@ -75,6 +84,8 @@ class ImitationSchedule:
             raise ValueError(f"dagger_rounds {self.dagger_rounds!r}: expected at least 1 round")
         if not 0.0 <= self.beta <= 1.0:
             raise ValueError(f"dagger_beta {self.beta!r}: expected a fraction in [0, 1]")
+        if not 0.0 <= self.kick_beta <= 1.0:
+            raise ValueError(f"kickstart_beta {self.kick_beta!r}: expected a fraction in [0, 1]")
         if self.weight < 0:
             raise ValueError(f"imitation_weight {self.weight!r}: expected a weight >= 0")
 
@@ -99,8 +110,20 @@ class ImitationSchedule:
 
     def acts(self, env_steps: float, episode: int, n: int) -> np.ndarray:
         """(n,) bool: the environments whose episode number ``episode`` (a batch) starting at ``env_steps`` the
-        teacher acts in (`teacher_acts`; none after DAgger)."""
+        teacher acts in (`teacher_acts`; during the decay a fraction ``kick_beta``, none after it)."""
         round_index = self.round_at(env_steps)
-        if round_index is None:
-            return np.zeros(n, dtype=bool)
-        return teacher_acts(self.seed, round_index, episode, n, self.beta)
+        if round_index is not None:
+            return teacher_acts(self.seed, round_index, episode, n, self.beta)
+        if env_steps < self.until and self.kick_beta > 0:
+            return teacher_acts(self.seed, self.dagger_rounds, episode, n, self.kick_beta)
+        return np.zeros(n, dtype=bool)
+
+    def row_weights(self, env_steps: float, acting: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The imitation and PPO weights, each (n,), of the rows collected at ``env_steps`` whose episodes the
+        teacher acts in where ``acting`` (n,) bool: the teacher's rows are never PPO rows, and with
+        ``teacher_rows_only`` the only imitation rows."""
+        acting = np.asarray(acting, dtype=bool)
+        imitation = np.full(acting.shape, self.imitation_weight(env_steps))
+        if self.teacher_rows_only:
+            imitation = np.where(acting, imitation, 0.0)
+        return imitation, np.where(acting, 0.0, self.rl_weight(env_steps))

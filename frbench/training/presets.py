@@ -98,14 +98,15 @@ _SYMMETRY_ASSIST_STEADY = replace(
                 "change, under which the mean action chatters on Go2 (docs/training.md)",
     algorithm=MappingProxyType({"entropy_coef": 0.005}))
 
-#: ``kickstart-scripted``'s timetable (`frbench.training.dagger.ImitationSchedule`, env steps): 3 M env steps of
-#: DAgger from ``scripted`` in 3 rounds (round 0 behaviour cloning, then the teacher acts in a quarter of the
-#: episodes), then PPO with the imitation weight falling from 1 to 0 at 12 M env steps. Where the teacher acts it
-#: acts with Gaussian noise of 0.2 rad (DART): without it the actor learns to copy its previous action
-#: (docs/training.md, "Why the first recipe stalled"; ``dagger_noise=0`` is that first recipe).
+#: ``kickstart-scripted``'s timetable (`frbench.training.dagger.ImitationSchedule`, env steps): 2 M env steps of
+#: behaviour cloning from ``scripted`` acting with Gaussian noise of 0.2 rad (DART: without it the actor learns to
+#: copy its previous action), then PPO with an imitation term whose weight falls from 1 to 0 at 12 M env steps,
+#: weighing only the episodes the teacher goes on acting in (a quarter of them, with the noise), where its label
+#: is its own next action (docs/training.md, "Why the first recipe stalled"; the first recipe was 3 DAgger rounds
+#: with beta 0.25, no noise, the imitation term on every row).
 KICKSTART_SCRIPTED = MappingProxyType({
-    "teacher": "scripted", "dagger_steps": 3e6, "dagger_rounds": 3, "dagger_beta": 0.25, "imitation_weight": 1.0,
-    "imitation_until": 12e6, "dagger_noise": 0.2})
+    "teacher": "scripted", "dagger_steps": 2e6, "dagger_rounds": 1, "dagger_beta": 0.0, "imitation_weight": 1.0,
+    "imitation_until": 12e6, "dagger_noise": 0.2, "kickstart_beta": 0.25, "imitate_rows": "teacher"})
 
 PRESETS: Mapping[str, Preset] = MappingProxyType({
     "paper": Preset("random morphologies on all terrains, the paper's setup (the defaults)"),

@@ -12,9 +12,9 @@ observation predicts the next label almost exactly, and a learner that copies it
 states and stalls on its own (docs/training.md, "Why the first recipe stalled"). The label stays the teacher's
 clean target; the executed, noisy action is the one the next observation carries.
 
-The training env adds the observation group ``teacher`` (N, J + 3) (`TEACHER_GROUP`): the label (J), the
-imitation weight and the PPO weight at the current env step (`dagger.ImitationSchedule`), and 1 where the
-teacher acted. PPO's storage keeps it with the other groups, so each mini-batch row carries its own label and
+The training env adds the observation group ``teacher`` (N, J + 3) (`TEACHER_GROUP`): the label (J), each
+row's imitation weight and PPO weight at the current env step (`dagger.ImitationSchedule.row_weights`), and 1
+where the teacher acted. PPO's storage keeps it with the other groups, so each mini-batch row carries its own label and
 weights (`frbench.training.imitation`); no network reads it.
 
 The controller is stateful (its phase, its ramps): it is reset at every new episode and asked exactly once per
@@ -58,7 +58,7 @@ class EnvTeacher:
         n = len(self.assignment)
         self.label = np.zeros((n, len(self.policy_default_pose)))
         self.acting = np.zeros(n, dtype=bool)
-        self.weights = (0.0, 1.0)
+        self.env_steps = 0
         self.noise, self.seed = float(noise), int(seed)
         self.noise_rng = np.random.default_rng([self.seed, 0, 11])
 
@@ -77,7 +77,7 @@ class EnvTeacher:
         resumed run's current episode)."""
         self.acting = self.schedule.acts(env_steps, episode, len(self.assignment))
         self.noise_rng = np.random.default_rng([self.seed, int(episode), 11])
-        self.weights = (self.schedule.imitation_weight(env_steps), self.schedule.rl_weight(env_steps))
+        self.env_steps = env_steps
 
     def observe(self, observation: dict[str, np.ndarray], env_steps: int) -> None:
         """The labels (N, J) of this control step's ``observation`` (its ``projected_gravity`` (N, 3) and
@@ -88,7 +88,7 @@ class EnvTeacher:
                 targets[ids] = controller.act({"projected_gravity": observation["projected_gravity"][ids],
                                                "joint_pos": observation["joint_pos"][ids]})
         self.label = teacher_label(targets, self.policy_default_pose, self.frame, self.scale)
-        self.weights = (self.schedule.imitation_weight(env_steps), self.schedule.rl_weight(env_steps))
+        self.env_steps = env_steps
 
     def executed(self, action: np.ndarray) -> np.ndarray:
         """The actions (N, J) the env executes: the label (plus the noise) where the teacher acts, ``action``
@@ -102,7 +102,6 @@ class EnvTeacher:
 
     def group(self) -> np.ndarray:
         """The ``teacher`` observation group (N, J + 3): label, imitation weight, PPO weight, teacher acted."""
-        n = len(self.assignment)
-        imitation, rl = self.weights
-        return np.concatenate([self.label, np.full((n, 1), imitation), np.full((n, 1), rl),
-                               self.acting[:, None].astype(np.float64)], axis=1)
+        imitation, rl = self.schedule.row_weights(self.env_steps, self.acting)
+        return np.concatenate([self.label, imitation[:, None], rl[:, None], self.acting[:, None].astype(np.float64)],
+                              axis=1)
