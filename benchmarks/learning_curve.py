@@ -65,8 +65,8 @@ kickstarting run's ``loss_imitation_weight``), the policy ``scripted`` on the sa
 The ``kickstart-scripted`` recipe (docs/training.md, "Learning from scripted")::
 
     nice -n 10 python benchmarks/learning_curve.py --preset kickstart-scripted --out runs/kickstart --seeds 0 \
-        --steps 24e6 --subset-every 3e6 --jobs 1
-    python benchmarks/learning_curve.py --out runs/kickstart --seeds 0 --steps 24e6 --subset-every 3e6 --report
+        --steps 24e6 --subset-every 2e6 --jobs 1
+    python benchmarks/learning_curve.py --out runs/kickstart --seeds 0 --steps 24e6 --subset-every 2e6 --report
 """
 
 from __future__ import annotations
