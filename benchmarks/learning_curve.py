@@ -174,6 +174,30 @@ def subset_rate(results: dict) -> tuple[int, int]:
     return sum(bool(e["success"]) for e in episodes), len(episodes)
 
 
+def family_level_table(results: dict, reference: dict) -> list[str]:
+    """Lines of successes per terrain family (rows) and level (columns) on the subset, ``results`` against
+    ``reference`` (``scripted``'s), each cell "learned/reference of n"; a trailing ``+`` marks a cell where the
+    learned policy got more episodes up, ``-`` fewer."""
+    def counts(run: dict) -> dict:
+        table = {}
+        for e in run["episodes"]:
+            wins, n = table.get((e["terrain"], e["level"]), (0, 0))
+            table[(e["terrain"], e["level"])] = (wins + bool(e["success"]), n + 1)
+        return table
+
+    mine, theirs = counts(results), counts(reference)
+    levels = sorted({level for _, level in mine})
+    lines = [f"{'family':8s}" + "".join(f"{f'level {level}':>16s}" for level in levels)]
+    for family in dict.fromkeys(terrain for terrain, _ in mine):
+        row = f"{family:8s}"
+        for level in levels:
+            (wins, n), (ref, _) = mine[(family, level)], theirs.get((family, level), (0, 0))
+            mark = "+" if wins > ref else "-" if wins < ref else " "
+            row += f"{f'{wins}/{ref} of {n}{mark}':>16s}"
+        lines.append(row)
+    return lines
+
+
 def report_subset(out: Path, seeds: list[int], budget: float, stop_at: float) -> None:
     """Print each seed's standard-grid estimate on `SUBSET` at its checkpoints with the imitation weight there,
     ``scripted`` on the same cells, and the stop rule (the first checkpoint at or past half the budget above
@@ -186,7 +210,8 @@ def report_subset(out: Path, seeds: list[int], budget: float, stop_at: float) ->
         return f"{wins / n:.3f} [{low:.3f}, {high:.3f}] ({wins}/{n})"
 
     print(f"standard-grid estimate on the subset {SUBSET_NAME} ({', '.join(f'{k} {v}' for k, v in SUBSET.items())})")
-    print(f"scripted: {cell(evaluate_subset('scripted', out / 'subset-scripted.json'))}")
+    scripted = evaluate_subset('scripted', out / 'subset-scripted.json')
+    print(f"scripted: {cell(scripted)}")
     for seed in seeds:
         folder = out / f"seed{seed}"
         path = folder / "progress.json"
@@ -199,6 +224,11 @@ def report_subset(out: Path, seeds: list[int], budget: float, stop_at: float) ->
             print(f"seed {seed}  {steps / 1e6:6.2f} M  {cell(results)}  imitation weight {weight:.3f}")
             if half is None and steps >= budget / 2:
                 half = subset_rate(results)
+        if subset_results(folder):
+            last_steps, last = max(subset_results(folder).items())
+            print(f"seed {seed} at {last_steps / 1e6:.2f} M against scripted, successes per family and level "
+                  "(learned/scripted of episodes):")
+            print("\n".join(family_level_table(json.loads(last.read_text()), scripted)))
         if half is None:
             print(f"seed {seed}: stop rule: not yet at half the budget ({budget / 2e6:g} M)")
         else:
