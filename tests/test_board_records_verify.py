@@ -20,11 +20,12 @@ from frbench.leaderboard.verify import verify
 from frbench.tasks.protocol import PROTOCOL_VERSION
 
 BOARD = Path(__file__).resolve().parents[1] / "leaderboard"
-#: The main board's records under protocol 1.3: each 1.2 main-board record's episodes with its PhysX cells
-#: (tools/rescore_physx.py); no 1.3 record ran a learned policy in the robot's own joint frame.
+#: The main board's records under protocol 1.4: each 1.3 main-board record's episodes, its 12 episodes whose start
+#: 1.4 redraws run again (tools/rescore_starts.py); no 1.4 record ran a learned policy in the robot's own joint frame.
 EXPECTED_MAIN_RECORDS = 17
 EXPECTED_SUPERSEDED = 0
-#: The humanoid track's records (tools/humanoid_records.py): keyframe-humanoid, scripted-humanoid, zero.
+#: The humanoid track's records: keyframe-humanoid, scripted-humanoid, zero (tools/humanoid_records.py under 1.3,
+#: re-scored under 1.4 by tools/rescore_starts.py).
 EXPECTED_HUMANOID_RECORDS = 3
 SAMPLE = 4
 

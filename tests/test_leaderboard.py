@@ -509,14 +509,14 @@ def test_table_ranks_main_records_and_lists_partial_ones(populated, capsys):
     status, out, _ = cli(capsys, "leaderboard", "--root", populated)
     assert status == 0
     lines = out.splitlines()
-    assert lines[0] == ("Main board, protocol 1.3: records covering the standard grid, ranked by mean success "
+    assert lines[0] == ("Main board, protocol 1.4: records covering the standard grid, ranked by mean success "
                         "(~: its 95 % interval overlaps the record above) (2 records)")
-    assert lines[2].split()[:4] == ["1", "ppo-best", "ppo", "1.3"]
-    assert lines[3].split()[:4] == ["2", "baseline", "scripted", "1.3"]
+    assert lines[2].split()[:4] == ["1", "ppo-best", "ppo", "1.4"]
+    assert lines[3].split()[:4] == ["2", "baseline", "scripted", "1.4"]
     tiny = next(line for line in lines if line.startswith("tiny ")).split()
     assert tiny[3] == "0.563" and tiny[5] == "0.813" and tiny[7] == "-"  # ties round up, as in the page; overall, flat, rough
     assert tiny[4].startswith("(") and tiny[4].endswith(")")  # the interval beside the score
-    assert "Partial records, protocol 1.3 (not ranked against the main board) (1 record)" in lines
+    assert "Partial records, protocol 1.4 (not ranked against the main board) (1 record)" in lines
 
 
 def test_json_output_and_filters(populated, capsys):
@@ -711,7 +711,7 @@ def test_records_of_another_protocol_version_are_archived_not_ranked(tmp_path, c
     lb.submit(write_results(tmp_path / "new.json", make_results(episodes=3, skill=0.5, salt=4)), root, name="current")
     status, out, _ = cli(capsys, "leaderboard", "--root", root, "--format", "json")
     data = json.loads(out)
-    assert status == 0 and data["protocol_version"] == "1.3"
+    assert status == 0 and data["protocol_version"] == "1.4"
     assert [r["name"] for r in data["main"]] == ["current"] and data["main"][0]["rank"] == 1
     assert [r["name"] for r in data["archived"]] == ["old-but-better"]
     assert data["archived"][0]["rank"] == 1 and data["archived"][0]["protocol_version"] == "1.0"  # within 1.0 only

@@ -28,7 +28,7 @@ def _spec_json(capsys, *args) -> dict:
 def test_spec_prints_the_go2_contract_with_frbench_s_numbers(capsys):
     go2 = get_robot("go2")
     data = _spec_json(capsys, "--robot", "go2")
-    assert data["protocol_version"] == "1.3" and data["control_dt"] == 0.02 and data["physics_dt"] == 0.005
+    assert data["protocol_version"] == "1.4" and data["control_dt"] == 0.02 and data["physics_dt"] == 0.005
     assert data["robot"]["joint_names"] == list(go2.joint_names) and data["robot"]["joint_names"][0] == "FL_hip_joint"
     assert data["robot"]["default_pose"] == list(go2.default_pose) and data["robot"]["kp"] == [40.0] * 12
     assert [(t["name"], t["size"], t["unit"]) for t in data["frame"]] == [

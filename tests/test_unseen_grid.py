@@ -104,7 +104,7 @@ def test_results_name_their_grid_and_a_1_2_record_needs_the_unseen_grid_to_be_ma
 
     both = make_results(episodes=3, skill=0.5, salt=2)
     check_results(both)
-    assert both["protocol_version"] == "1.3" and both["config"]["grid"] == ["standard", "unseen"]
+    assert both["protocol_version"] == "1.4" and both["config"]["grid"] == ["standard", "unseen"]
     record = build_record(both, submission_fields(both, name="x", description="", submitter="a", link=None,
                                                    submitted="2026-01-01T00:00:00Z"))
     assert record["track"] == "main" and record["scores"]["unseen"]["cells"] == 864  # three simulators
@@ -145,7 +145,7 @@ def test_evaluate_grid_unseen_writes_the_grid_into_the_results(tmp_path, capsys,
     captured = capsys.readouterr()
     assert status == 0, captured.err
     results = json.loads(out.read_text())
-    assert results["protocol_version"] == "1.3" and results["config"]["grid"] == ["unseen"]
+    assert results["protocol_version"] == "1.4" and results["config"]["grid"] == ["unseen"]
     assert list(results["config"]["not_scored"]) == ["icub"] and "robot 'icub' of the grid is not scored" in captured.err
     assert [(c["robot"], c["episodes"]) for c in results["cells"]] == [("a1", 2)]
     assert results["robots"]["a1"]["source"] == "example-robot-data: a1_description/urdf/a1.urdf"
@@ -174,7 +174,7 @@ def test_the_board_shows_standard_and_unseen_with_the_gap_and_ranks_by_unseen(tm
         assert g["unseen"][1] < g["unseen"][0] < g["unseen"][2]
         assert g["gap"][0] == pytest.approx(g["matched"][0] - g["unseen"][0])
     readme = (root / "README.md").read_text()
-    assert "### Ranked by unseen success (protocol 1.3)" in readme and "| Unseen | Matched − unseen | Humanoids |" in readme
+    assert "### Ranked by unseen success (protocol 1.4)" in readme and "| Unseen | Matched − unseen | Humanoids |" in readme
     assert readme.count("| n/a |") >= 4  # the humanoid column of both tables, both records
     entries = {e["name"]: e for e in page_data(load_records(root))["records"]}
     assert entries["strong"]["generalisation"]["unseen"] == ranking[0]["unseen"]

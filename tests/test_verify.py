@@ -264,7 +264,7 @@ def test_records_of_another_protocol_are_caught(capsys, root, tmp_path, policies
     labelled["protocol_version"] = "1.0"
     path = submitted(capsys, root, tmp_path, labelled, policies["frnet-3m"])
     status, out, _ = verify(capsys, path)
-    assert status == 1 and "ran under protocol 1.0, this frbench runs protocol 1.3 and reproduces episodes from 1.2 on" in out
+    assert status == 1 and "ran under protocol 1.0, this frbench runs protocol 1.4 and reproduces episodes from 1.2 on" in out
     # episodes judged by other rules (standing at 30 % of the nominal height, not 75 %), labelled with this protocol
     import frbench.tasks.success as success
 

@@ -100,6 +100,9 @@ RECORDS_ELSEWHERE: dict[str, tuple[str, str]] = {
     "1.2": ("33 records (its 17 ranked records, whose 1.3 re-scores hold their MuJoCo and PyBullet episodes "
             "unchanged and name them in `reused` with the sha256 of those episodes, and the 16 robot-frame records "
             "their canonical-frame re-scores superseded)", "7ab8799a8e21ad731d33cd1cfd20301f483550f9"),
+    "1.3": ("20 records (its 17 main-board and 3 humanoid-track records, whose 1.4 re-scores hold every episode "
+            "whose start 1.4 does not redraw unchanged and name them in `reused` with the sha256 of those "
+            "episodes)", "8b5227d2818c03f47ecc76952b47d9bf21b3bf56"),
 }
 
 

@@ -9,13 +9,14 @@ from __future__ import annotations
 
 from frbench.control import CONTROL_DT  # noqa: F401  (the control period [s] is part of the protocol)
 
-#: The protocol this code implements: 1.3, the grids in three simulators (PhysX added; docs/protocol.md,
-#: "Protocol 1.3").
-PROTOCOL_VERSION = "1.3"
+#: The protocol this code implements: 1.4, 1.3's grids in three simulators with every start free of self-overlap
+#: (docs/protocol.md, "Protocol 1.4").
+PROTOCOL_VERSION = "1.4"
 #: Every protocol version whose results the leaderboard accepts.
 KNOWN_PROTOCOL_VERSIONS = ("1.0", "1.1", "1.2", "1.3", "1.4")
-#: The earliest protocol whose episodes this code reproduces (`frbench verify`): 1.3 added PhysX cells and the
-#: humanoid grid and changed no MuJoCo or PyBullet episode of 1.2; 1.2 changed learned policies' inference.
+#: The earliest protocol whose episodes this code reproduces (`frbench verify`): 1.4 draws a 1.3 or 1.2 record's
+#: starts with that version's redraw rule (`joint_redraws`); 1.3 added PhysX cells and the humanoid grid and changed
+#: no MuJoCo or PyBullet episode of 1.2; 1.2 changed learned policies' inference.
 REPRODUCED_FROM = "1.2"
 #: The first protocol whose starts are redrawn until their links are free of each other (docs/protocol.md,
 #: "Protocol 1.4"; `frbench.tasks.initial_states.joint_redraws`): earlier protocols kept the last of 50 redraws,
