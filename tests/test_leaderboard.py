@@ -586,9 +586,9 @@ def test_check_reports_stale_and_invalid_files(populated, capsys):
     write(record, original.replace('"description": ""', '"description": "<script>alert(1)</script>"', 1))
     status, _, err = cli(capsys, "leaderboard", "--check", "--root", populated)
     assert status == 1 and f"{record}: submission.description: '<script>" in err
-    write(record, original.replace('"protocol_version": "1.3"', '"protocol_version": "0.9"', 1))
+    write(record, original.replace('"protocol_version": "1.4"', '"protocol_version": "0.9"', 1))
     status, _, err = cli(capsys, "leaderboard", "--check", "--root", populated)
-    assert status == 1 and f"{record}: results.protocol_version: unknown protocol version '0.9'; known: 1.0, 1.1, 1.2, 1.3" in err
+    assert status == 1 and f"{record}: results.protocol_version: unknown protocol version '0.9'; known: 1.0, 1.1, 1.2, 1.3, 1.4" in err
     write(record, original.replace('"created": "2026-11-22T01:23:45Z"', '"created": "2026-11-22T01:23:46Z"', 1))
     status, _, err = cli(capsys, "leaderboard", "--check", "--root", populated)
     assert status == 1 and f"{record}: id: {rid} is not the sha256 of the record's results (" in err

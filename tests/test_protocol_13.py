@@ -76,9 +76,9 @@ def _copy_with(results: dict, edit) -> dict:
 
 
 def test_grid_simulators_per_protocol_version():
-    assert PROTOCOL_VERSION == "1.3" and "1.3" in KNOWN_PROTOCOL_VERSIONS
+    assert PROTOCOL_VERSION == "1.4" and "1.3" in KNOWN_PROTOCOL_VERSIONS
     assert grid_backends("1.2") == ("mujoco", "pybullet") == grid_backends("1.1")
-    assert grid_backends("1.3") == THREE == grid_backends()
+    assert grid_backends("1.3") == THREE == grid_backends("1.4") == grid_backends()
 
 
 def test_grid_cell_counts_per_protocol_version():
