@@ -204,7 +204,7 @@ def test_page_sorts_filters_charts_and_shows_provenance(board_dir, tmp_path):
     records = {r["submission"]["name"]: r for r in load_records(board_dir)}
     ppo = records["ppo-rough-v2"]
     for expected in (ppo["id"], "0123456789abcdef0123456789abcdef01234567", "runs/ppo/model.pt", "ab" * 32,
-                     "example-robot-data 6.0.0", "2.13.0+cpu", "Protocol version1.3", "domain randomization"):
+                     "example-robot-data 6.0.0", "2.13.0+cpu", "Protocol version1.4", "domain randomization"):
         assert expected in out["details"], expected
     assert out["selected"] == ppo["id"] and out["hash"] == f"#record={ppo['id']}"
     assert out["detailsHiddenAfterClose"] is True
