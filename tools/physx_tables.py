@@ -1,7 +1,8 @@
-"""PhysX beside MuJoCo and PyBullet: the Markdown tables of docs/physx.md, from protocol 1.3 results.
+"""PhysX beside MuJoCo and PyBullet: the Markdown tables of docs/physx.md, from results of protocol 1.3 on.
 
 Reads ``frbench evaluate`` results files, or with ``--board`` the main-board records of one protocol version
-(records superseded by a re-score left out, as the board leaves them out), and prints one of:
+(``--protocol``, the current one by default; records superseded by a re-score left out, as the board leaves them
+out), and prints one of:
 
 * ``--family-levels`` (one results file): success per terrain family x level x simulator over the standard
   grid's cells of that family and level;
@@ -13,9 +14,10 @@ Reads ``frbench evaluate`` results files, or with ``--board`` the main-board rec
 Every success is a mean of cell success rates with its 95 % stratified-bootstrap interval, computed by
 `frbench.leaderboard.scores` as the board computes it::
 
-    python tools/physx_tables.py --family-levels runs/rescore-1.3/scripted/results.json
-    python tools/physx_tables.py --per-record runs/rescore-1.3/*/results.json
-    python tools/physx_tables.py --per-record --board leaderboard --protocol 1.3
+    zcat leaderboard/records/2a4e25df0d24*.json.gz | jq .results > /tmp/scripted.json   # a board record's results
+    python tools/physx_tables.py --family-levels /tmp/scripted.json
+    python tools/physx_tables.py --per-record /tmp/scripted.json
+    python tools/physx_tables.py --per-record --board leaderboard --protocol 1.4
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ from generalisation_table import markdown, mean_success, with_interval  # noqa: 
 
 from frbench.errors import FrbenchError  # noqa: E402
 
-#: The grid simulators of protocol 1.3, in the tables' column order.
+#: The grid simulators of protocol 1.3 on, in the tables' column order.
 SIMULATORS = ("mujoco", "pybullet", "physx")
 LABELS = {"mujoco": "MuJoCo", "pybullet": "PyBullet", "physx": "PhysX"}
 #: The signed pairwise gaps of `frbench.leaderboard.scores.score_intervals`, first − second.
@@ -155,13 +157,16 @@ def parse_levels(text: str) -> list[int]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    from frbench.tasks.protocol import PROTOCOL_VERSION
+
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     table = parser.add_mutually_exclusive_group(required=True)
     table.add_argument("--family-levels", action="store_true", help="success per family x level x simulator")
     table.add_argument("--per-record", action="store_true", help="success and gaps per record")
-    parser.add_argument("files", nargs="*", type=Path, help="results files (protocol 1.3)")
+    parser.add_argument("files", nargs="*", type=Path, help="results files (protocol 1.3 on)")
     parser.add_argument("--board", type=Path, help="a leaderboard folder: read its main-board records instead")
-    parser.add_argument("--protocol", default="1.3", help="with --board: the records' protocol (default 1.3)")
+    parser.add_argument("--protocol", default=PROTOCOL_VERSION,
+                        help="with --board: the records' protocol (default: the current one)")
     parser.add_argument("--levels", type=parse_levels, default=[1, 5], help="with --family-levels (default 1,5)")
     args = parser.parse_args(argv)
     if (args.board is None) == (not args.files):
