@@ -552,3 +552,28 @@ def test_rise_starts_begin_where_the_gate_opened_with_the_controller_in_its_rise
     with pytest.raises(ValueError, match="rise_start_fraction 0.5: expected residual_gate"):
         TrainEnvConfig(num_envs=2, robot="g1", randomize=False, families=("flat",),
                        base_controller="keyframe-humanoid", rise_start_fraction=0.5)
+
+
+def test_a_run_kept_without_its_optimisers_resumes_at_its_learning_rate(tmp_path):
+    import subprocess
+    import sys
+
+    from frbench.training.run import OPTIMISER_KEYS, TrainingRun
+
+    cfg = TrainEnvConfig(num_envs=8, episode_steps=5, settle_steps=2, num_morphologies=2, families=("flat",))
+    run = TrainingRun(tmp_path / "run", "frnet", cfg, total_steps=8 * 24 * 2, checkpoint_every=1)
+    run.train(progress_bar=False)
+    rate = run.runner.alg.learning_rate
+    subprocess.run([sys.executable, "tools/keep_run.py", str(tmp_path / "run"), str(tmp_path / "kept")], check=True,
+                   capture_output=True)
+    full, kept = (torch.load(tmp_path / f / "runner.pt", weights_only=False) for f in ("run", "kept"))
+    assert not set(OPTIMISER_KEYS) & set(kept) and set(OPTIMISER_KEYS) <= set(full)
+    assert kept["learning_rate"] == pytest.approx(rate)
+    assert (tmp_path / "kept" / "runner.pt").stat().st_size < 0.5 * (tmp_path / "run" / "runner.pt").stat().st_size
+    resumed = TrainingRun(tmp_path / "kept", total_steps=8 * 24 * 3, resume=True, checkpoint_every=1)
+    assert resumed.env_steps == 384 and resumed.runner.alg.learning_rate == pytest.approx(rate)
+    assert all(group["lr"] == pytest.approx(rate) for group in resumed.runner.alg.optimizer.param_groups)
+    for name, weights in kept["actor_state_dict"].items():
+        assert torch.equal(resumed.runner.alg.get_policy().state_dict()[name], weights)
+    resumed.train(progress_bar=False)
+    assert resumed.env_steps == 576

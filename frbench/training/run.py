@@ -3,7 +3,8 @@
 A run folder ``runs/NAME/`` holds:
 
 * ``config.json``: method, env config, rsl-rl config, step budget, seed, command;
-* ``runner.pt``: rsl-rl's full training state (models, optimisers) — for ``--resume``;
+* ``runner.pt``: rsl-rl's full training state (models, optimisers) — for ``--resume`` (a run kept in the
+  tree holds it without the optimisers, `keep_without_optimisers`, and resumes with fresh Adam moments);
 * ``state.pt``: frbench's state (iterations, env steps, wall-clock, curriculum,
   random generator) — for ``--resume``;
 * ``policy.pt``: the frbench policy checkpoint (`frbench-policy-v1`, loads with
@@ -51,6 +52,20 @@ RUNNER_FILE, STATE_FILE, POLICY_FILE, CONFIG_FILE = "runner.pt", "state.pt", "po
 SNAPSHOT_DIR = "snapshots"
 #: Env steps between policy snapshots.
 SNAPSHOT_EVERY_STEPS = 1_000_000
+
+
+#: The entries of ``runner.pt`` that hold optimiser states (PPO's, the estimator's).
+OPTIMISER_KEYS = ("optimizer_state_dict", "estimator_optimizer_state_dict")
+
+
+def keep_without_optimisers(runner_file: Path, kept_file: Path) -> None:
+    """Write ``runner_file`` (a run's ``runner.pt``) to ``kept_file`` without its optimiser states (`OPTIMISER_KEYS`,
+    about 70 % of the file), with PPO's current learning rate as ``learning_rate``: the run then fits in a folder
+    that is kept in the tree, and ``--resume`` goes on from it with fresh Adam moments at that rate."""
+    saved = torch.load(runner_file, weights_only=False, map_location="cpu")
+    kept = {key: value for key, value in saved.items() if key not in OPTIMISER_KEYS}
+    kept["learning_rate"] = float(saved["optimizer_state_dict"]["param_groups"][0]["lr"])
+    _atomic_torch_save(kept, Path(kept_file))
 
 
 def _atomic_torch_save(obj, path: Path) -> None:
@@ -248,7 +263,16 @@ class TrainingRun:
         return env_cfg
 
     def _load_state(self) -> None:
-        self.runner.load(str(self.out / RUNNER_FILE))
+        path = self.out / RUNNER_FILE
+        saved = torch.load(path, weights_only=False, map_location="cpu")
+        if "optimizer_state_dict" in saved:
+            self.runner.load(str(path))
+        else:  # a run kept without its optimiser states (`keep_without_optimisers`): fresh moments, its last rate
+            self.runner.load(str(path), load_cfg={"actor": True, "critic": True, "iteration": True})
+            algorithm = self.runner.alg
+            algorithm.learning_rate = float(saved.get("learning_rate", algorithm.learning_rate))
+            for group in algorithm.optimizer.param_groups:
+                group["lr"] = algorithm.learning_rate
         state = torch.load(self.out / STATE_FILE, weights_only=False)
         self.iteration, self.env_steps, self.wall = state["iteration"], state["env_steps"], state["wall"]
         own = state["ranks"][self.ranks.rank] if "ranks" in state else state  # a multi-process run's per-rank state
