@@ -25,7 +25,10 @@ For each robot (default g1, icub, talos), MuJoCo, flat level 1, seed 0, episodes
 ``--redraws N`` sets `MAX_REDRAWS` for the run (the protocol's value is 50), to measure how a larger redraw
 budget changes the starts; ``--policy mpc`` also runs that policy on the same episodes through the
 evaluation's episode runner (``run_episodes``) and prints its successes and peak contact forces (slow:
-about 2 min per iCub or Talos episode on 2 cores; the policy takes its settings from ``$FRBENCH_MPC``).
+about 2 min per iCub or Talos episode on 2 cores; the policy takes its settings from ``$FRBENCH_MPC``), with,
+per episode, the fraction of (control step, joint) pairs whose applied torque is at its limit (≥ 98 %; all joints,
+and the first 12, the legs), the root's height over the nominal height (the highest, the 10-90 % range from 1 s
+on, the last) and the displacement from the start at the end.
 
 Run: ``python benchmarks/humanoid_contact_probe.py`` (under a minute; ``--planner`` adds about 15 s);
 ``--robots icub --episodes 8``; ``--planner --redraws 2000``; ``--robots icub,talos --redraws 2000 --policy mpc``.
@@ -221,12 +224,24 @@ def probe(name: str, episodes: int, draws: int, planner: bool, policy: str | Non
         from frbench.evaluation.episodes import run_episodes
         from frbench.policies.registry import load_policy
 
-        task = run_episodes(spec, "mujoco", terrain, screened_starts(spec, terrain, episodes), load_policy(policy))
+        limits, trace = np.asarray(spec.torque_limits), {"saturated": [], "height": [], "displacement": []}
+
+        def record(task, targets):
+            trace["saturated"].append(np.abs(task.state.tau) >= 0.98 * limits)
+            trace["height"].append(np.asarray(task.signals.height) / spec.nominal_height)
+            trace["displacement"].append(np.asarray(task.signals.displacement))
+
+        task = run_episodes(spec, "mujoco", terrain, screened_starts(spec, terrain, episodes), load_policy(policy),
+                            on_step=record)
         metrics = task.metrics
+        saturated, height, away = (np.asarray(trace[k]) for k in ("saturated", "height", "displacement"))
         for e in range(episodes):
             print(f"   {policy} ep {e}: success {bool(task.success.success[e])}, peak contact "
                   f"{metrics.peak_contact_force[e]:.0f} N = {metrics.peak_contact_force[e] / replay.weight:.1f} x weight, "
-                  f"energy {metrics.energy[e]:.0f} J")
+                  f"energy {metrics.energy[e]:.0f} J; torque-saturated joint-steps {saturated[:, e].mean():.3f} "
+                  f"(legs {saturated[:, e, :12].mean():.3f}); root height / nominal: max {height[:, e].max():.2f}, "
+                  f"at 1-5 s {np.percentile(height[50:, e], 10):.2f}-{np.percentile(height[50:, e], 90):.2f} (10-90 %), "
+                  f"end {height[-1, e]:.2f}; displacement at the end {away[-1, e]:.2f} m")
 
 
 def main() -> None:
