@@ -1,11 +1,11 @@
 """Keep an unfinished training run in the tree, small enough to commit, so that it resumes on another machine.
 
 A run folder (``frbench train --out``, or one seed of ``benchmarks/learning_curve.py``: ``OUT/seed<S>``) holds
-about 6 MB, most of it optimiser states. This copies what ``frbench train --resume`` needs into ``DEST``:
-``config.json``, ``state.pt``, ``progress.json``, ``curve.csv``, ``policy.pt`` and ``runner.pt`` without its
+about 6 MB, most of it optimiser states and policy snapshots. This copies what ``frbench train --resume``
+needs into ``DEST``: ``config.json``, ``state.pt``, ``progress.json``, ``curve.csv`` and ``runner.pt`` without its
 optimiser states (`frbench.training.run.keep_without_optimisers`: about 1.4 MB instead of 3.9; the run resumes
-with fresh Adam moments at its last learning rate), and the subset results of a learning curve
-(``subset-*.json``, gzipped, for the record only)::
+with fresh Adam moments at its last learning rate; its next checkpoint writes ``policy.pt`` again), and the
+subset results of a learning curve (``subset-*.json``, gzipped, for the record only)::
 
     python tools/keep_run.py runs/kickstart/seed0 checkpoints/kickstart-seed0/seed0
 
@@ -20,11 +20,11 @@ import gzip
 import shutil
 from pathlib import Path
 
-from frbench.training.run import CONFIG_FILE, POLICY_FILE, RUNNER_FILE, STATE_FILE, keep_without_optimisers
+from frbench.training.run import CONFIG_FILE, RUNNER_FILE, STATE_FILE, keep_without_optimisers
 from frbench.training.curves import PROGRESS_FILE
 
 #: Files copied as they are (when present).
-COPIED = (CONFIG_FILE, STATE_FILE, PROGRESS_FILE, "curve.csv", POLICY_FILE)
+COPIED = (CONFIG_FILE, STATE_FILE, PROGRESS_FILE, "curve.csv")
 
 
 def keep(run: Path, dest: Path) -> list[Path]:
