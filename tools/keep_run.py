@@ -4,19 +4,18 @@ A run folder (``frbench train --out``, or one seed of ``benchmarks/learning_curv
 about 6 MB, most of it optimiser states and policy snapshots. This copies what ``frbench train --resume``
 needs into ``DEST``: ``config.json``, ``state.pt``, ``progress.json``, ``curve.csv`` and ``runner.pt`` without its
 optimiser states (`frbench.training.run.keep_without_optimisers`: about 1.4 MB instead of 3.9; the run resumes
-with fresh Adam moments at its last learning rate; its next checkpoint writes ``policy.pt`` again), and the
-subset results of a learning curve (``subset-*.json``, gzipped, for the record only)::
+with fresh Adam moments at its last learning rate; its next checkpoint writes ``policy.pt`` again). A learning
+curve's subset results (``subset-*.json``, 0.5 MB each) stay out: write their numbers where the run is described::
 
     python tools/keep_run.py runs/kickstart/seed0 checkpoints/kickstart-seed0/seed0
 
-To resume, copy ``DEST`` back to where the run lived (``gunzip`` nothing: the subset results are not read back)
-and run the same ``frbench train --resume`` or ``learning_curve.py`` command.
+To resume, copy ``DEST`` back to where the run lived and run the same ``frbench train --resume`` or
+``learning_curve.py`` command.
 """
 
 from __future__ import annotations
 
 import argparse
-import gzip
 import shutil
 from pathlib import Path
 
@@ -39,10 +38,6 @@ def keep(run: Path, dest: Path) -> list[Path]:
             written.append(dest / name)
     keep_without_optimisers(run / RUNNER_FILE, dest / RUNNER_FILE)
     written.append(dest / RUNNER_FILE)
-    for subset in sorted(run.glob("subset-*.json")):
-        target = dest / f"{subset.name}.gz"
-        target.write_bytes(gzip.compress(subset.read_bytes(), mtime=0))
-        written.append(target)
     return written
 
 
