@@ -11,8 +11,10 @@ where μ is the actor's mean action, a* the teacher's label (`frbench.training.t
 collected, `frbench.training.dagger.ImitationSchedule`). DAgger's rows have w_rl = 0: their advantages are
 zeroed (the surrogate has no gradient; the teacher, not the sampled action, moved those episodes), the entropy
 bonus is off and the learning rate stays fixed (PPO's KL rule would read the imitation's steps as a policy
-change), while the value function and the estimator learn as in PPO. After DAgger w_rl = 1 and w_im decays
-to 0: plain FR-Net PPO.
+change), while the value function and the estimator learn as in PPO. After DAgger w_im decays to 0; the rows
+of episodes the teacher still acts in (``kickstart_beta``) keep w_rl = 0, the learner's rows have w_rl = 1 and,
+with ``imitate_rows = "teacher"``, w_im = 0 (`frbench.training.dagger.ImitationSchedule.row_weights`); after the
+decay it is plain FR-Net PPO.
 
 The term enters through rsl-rl's extension slot for a policy loss, ``PPO.symmetry`` (`ImitationLoss`:
 ``augment_batch`` leaves the batch, ``compute_loss`` returns the term, which PPO adds to its loss before its
