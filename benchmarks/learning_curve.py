@@ -160,10 +160,14 @@ def subset_results(folder: Path) -> dict[int, Path]:
 
 def evaluate_subset_checkpoint(folder: Path, every: float, log) -> None:
     """Score the run's current policy on `SUBSET` when it is the first checkpoint at or past a multiple of
-    ``every`` env steps that has no subset result yet."""
+    ``every`` env steps that has no subset result yet; a run kept without its policy (tools/keep_run.py) is
+    skipped, its checkpoint having been scored before it was kept."""
     steps = trained_steps(folder)
     mark = int(steps // every)
     if mark < 1 or any(int(s // every) == mark for s in subset_results(folder)):
+        return
+    if not (folder / "policy.pt").is_file():  # a run kept by tools/keep_run.py: scored before it was kept
+        log.write(f"no policy.pt at {steps} env steps (a kept run): its subset score is in the kept run's README\n")
         return
     evaluate_subset(str(folder / "policy.pt"), folder / f"subset-{steps}.json", log)
 
