@@ -46,8 +46,8 @@ def processor_bound(record: Mapping) -> bool:
 #: The note on a processor-bound verification (`processor_bound`), marked with a dagger.
 PROCESSOR_BOUND_NOTE = (
     "† verified on the verifying machine's processor only: the policy is learned and ran float32 inference, whose "
-    "last bits depend on the CPU's vector kernels (on an AVX-512 machine `frbench verify f3a8b4dd2ded --sample 4 "
-    "--seed 1` fails 4/4; so do dreamriser-3m and frnet-no-stability-15m). Protocol 1.2 infers in float64 with "
+    "last bits depend on the CPU's vector kernels (on an AVX-512 machine frnet-3m's 1.1 record f3a8b4dd2ded failed "
+    "`--sample 4 --seed 1` 4/4; so did dreamriser-3m and frnet-no-stability-15m). Protocol 1.2 infers in float64 with "
     "float32-rounded actions, so its records verify on any x86-64 machine (docs/protocol.md).")
 
 

@@ -23,8 +23,14 @@ from frbench.leaderboard.policy_files import MAX_POLICY_BYTES
 from frbench.leaderboard.records import record_file_name
 from frbench.leaderboard.render import axes, board, humanoid_text, standard_text
 from frbench.leaderboard.sections import SIMULATOR_STATE, section_of
-from frbench.leaderboard.verify import RELATIVE_TOLERANCE, REPRODUCED_TOLERANCE
-from frbench.tasks.protocol import HUMANOID_EPISODES, HUMANOID_TERRAINS, KNOWN_PROTOCOL_VERSIONS, PROTOCOL_VERSION
+from frbench.leaderboard.verify import RELATIVE_TOLERANCE, REPRODUCED_TOLERANCE, reproducible
+from frbench.tasks.protocol import (
+    HUMANOID_EPISODES,
+    HUMANOID_TERRAINS,
+    KNOWN_PROTOCOL_VERSIONS,
+    PROTOCOL_VERSION,
+    REPRODUCED_FROM,
+)
 
 def _unseen_text() -> str:
     from frbench.evaluation.grids import unseen_part
@@ -94,9 +100,16 @@ def humanoid_section(rows: Sequence[Mapping], families: Sequence[str], backends:
     return lines + [""]
 
 
-#: Records that left the tree: protocol version -> (what they were, the commit that holds them). A later protocol's
-#: records hold every episode of the ranked ones and name them (``reused``).
+#: Records that left the tree: protocol version -> (what they were, the commit that holds them). 1.2's and 1.3's
+#: ranked records: a later protocol's records hold every episode of them and name them (``reused``); 1.0's and 1.1's
+#: were the archived section (ranked within their own version only, `frbench verify` does not re-run them).
 RECORDS_ELSEWHERE: dict[str, tuple[str, str]] = {
+    "1.0": ("27 records (its 12 main-board and 15 partial records, MuJoCo and PyBullet only; 10 of the 12 main-board "
+            "policies have a 1.4 record, frnet-8m and frnet-12m none; no policy file left with them: a 1.4 record "
+            "attaches each one they attach)", "f244bb3a8b2a0697be63853de689a62ec7abefeb"),
+    "1.1": ("30 records (its 17 main-board and 13 partial records, MuJoCo and PyBullet only; each main-board "
+            "policy has a 1.4 record, same checkpoint; no policy file left with them: a 1.4 record attaches each "
+            "one they attach)", "f244bb3a8b2a0697be63853de689a62ec7abefeb"),
     "1.2": ("33 records (its 17 ranked records, whose 1.3 re-scores hold their MuJoCo and PyBullet episodes "
             "unchanged and name them in `reused` with the sha256 of those episodes, and the 16 robot-frame records "
             "their canonical-frame re-scores superseded)", "7ab8799a8e21ad731d33cd1cfd20301f483550f9"),
@@ -110,7 +123,10 @@ def records_elsewhere_text() -> list[str]:
     """The README's lines on the records that left the tree (`RECORDS_ELSEWHERE`)."""
     return [line for version, (what, commit) in RECORDS_ELSEWHERE.items() for line in (
         f"Protocol {version}'s {what} are not in this tree: commit {commit} holds them (`git checkout {commit[:12]} "
-        "-- leaderboard/records/<id>.json.gz` restores one, which `frbench verify` re-runs).", "")]
+        "-- leaderboard/records/<id>.json.gz` restores one, "
+        + ("which `frbench verify` re-runs)." if reproducible(version) else
+           f"which `frbench verify` re-runs only from protocol {REPRODUCED_FROM} on: the frbench commit the record "
+           "names re-runs it)."), "")]
 
 
 def render_markdown(records: Sequence[Mapping]) -> str:
