@@ -43,9 +43,11 @@ def _names_an_unseen_robot(texts: list[str]) -> list[str]:
 
 def test_no_training_preset_morphology_range_or_robot_table_names_an_unseen_robot():
     from frbench.robots import morphology, morphology_presets
-    from frbench.training import presets
+    from frbench.training import bodies, presets
 
     assert _names_an_unseen_robot(_texts(dict(presets.PRESETS))) == []
+    # the body distributions (``TrainEnvConfig.bodies``): their names and every value of their tables
+    assert _names_an_unseen_robot(_texts(dict(bodies.BODIES))) == [] and len(_texts(dict(bodies.BODIES))) > 8
     ranges = [presets.COVERING_MORPHOLOGY_RANGES, presets.LIGHT_MORPHOLOGY_RANGES, morphology.morphology_ranges()]
     assert _names_an_unseen_robot(_texts(ranges)) == []
     tables = {name: value for name, value in vars(morphology_presets).items() if name.isupper()}

@@ -190,12 +190,24 @@ class PhysicsParams:
 MOTOR_FRICTION_VELOCITY = 0.1
 
 
+def torque_limit_rows(spec: RobotSpec, num_envs: int, variants=None) -> np.ndarray:
+    """Torque limits [N·m]: ``spec``'s (n_joints,), or each simulation's robot's (N, n_joints) when the morphology
+    ``variants`` (specs, assignment, …) differ in them (robots of different sizes)."""
+    own = np.asarray(spec.torque_limits)
+    if variants is None or all(s.torque_limits == spec.torque_limits for s in variants[0]):
+        return own
+    return np.array([variants[0][k].torque_limits for k in np.asarray(variants[1])], dtype=float).reshape(num_envs, -1)
+
+
 def actuator_torque(params: PhysicsParams, limits: np.ndarray, targets: np.ndarray, q: np.ndarray,
                     qd: np.ndarray, rows=slice(None)) -> np.ndarray:
     """The joint torques [N·m] of every backend's explicit PD actuator (module docstring), for ``rows``.
 
-    ``targets``, ``q``, ``qd``: the rows' (…, n_joints) arrays; ``limits`` (n_joints,) torque limits [N·m].
+    ``targets``, ``q``, ``qd``: the rows' (…, n_joints) arrays; ``limits`` (n_joints,) torque limits [N·m], or
+    (N, n_joints) per simulation (`torque_limit_rows`).
     """
+    if limits.ndim == 2:
+        limits = limits[rows]
     kp, kd, strength = params.kp[rows], params.kd[rows], params.motor_strength[rows]
     tau = strength * np.minimum(np.maximum(kp * (targets - q) - kd * qd, -limits), limits)
     if params.motor_friction is not None:

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from frbench.backends.base import PhysicsParams, RobotState, check_base_force, divergence_mask
+from frbench.backends.base import PhysicsParams, RobotState, check_base_force, divergence_mask, torque_limit_rows
 from frbench.robots.spec import RobotSpec
 
 
@@ -14,16 +14,17 @@ class ExplicitPdBatch:
     """Bookkeeping of N simulations whose PD torques the backend computes (`frbench.backends.base.actuator_torque`).
 
     Attributes set by `_init_batch`: ``diverged`` (N,) bool; ``_tau`` (N, n_joints) the torques of the last
-    physics step [N·m]; ``_base_force`` (N, 3) [N]; ``_limits`` (n_joints,) torque limits [N·m]; ``_state`` the
+    physics step [N·m]; ``_base_force`` (N, 3) [N]; ``_limits`` (n_joints,) torque limits [N·m] ((N, n_joints) when the morphology variants'
+    differ, `torque_limit_rows`); ``_state`` the
     state read after the last step (None: read it again); ``_masses`` (N, n_links) link masses [kg] (None: read
     them again); ``params`` the physics, nominal at first.
     """
 
-    def _init_batch(self, spec: RobotSpec, num_envs: int) -> None:
+    def _init_batch(self, spec: RobotSpec, num_envs: int, variants=None) -> None:
         self.diverged = np.zeros(num_envs, dtype=bool)
         self._tau = np.zeros((num_envs, spec.n_joints))
         self._base_force = np.zeros((num_envs, 3))
-        self._limits = np.asarray(spec.torque_limits)
+        self._limits = torque_limit_rows(spec, num_envs, variants)
         self._state: RobotState | None = None
         self._masses: np.ndarray | None = None
         self.params = PhysicsParams.nominal(spec, num_envs)

@@ -37,6 +37,7 @@ from frbench.backends.base import (
     check_targets,
     divergence_mask,
     summarize_contacts,
+    torque_limit_rows,
 )
 from frbench.arrays import copy_of, is_host, like, namespace
 from frbench.backends.contact_layout import as_slice, on_device, vector_norm
@@ -114,7 +115,7 @@ class MujocoBackend(ModelLayout):
         self._bias = self.batch.expand("actuator_biasprm")
         self._force_range = self.batch.expand("actuator_forcerange")
         self._base_force = np.zeros((self.num_envs, 3))
-        self._limits = np.asarray(spec.torque_limits)
+        self._limits = torque_limit_rows(spec, self.num_envs, variants)  # (J,) or (N, J) [N·m]
         self._tau = np.zeros((self.num_envs, spec.n_joints))
         self.diverged = np.zeros(self.num_envs, dtype=bool)
         self._com_of: CentreOfMass | None = None  # built by the first `whole_body_com`
@@ -239,12 +240,12 @@ def write_actuator_params(gain: np.ndarray, bias: np.ndarray, force_range: np.nd
                           limits: np.ndarray) -> None:
     """Write ``params``' gains, strength and motor friction into the per-simulation actuator fields of a model
     built by `build_model`, in place: ``gain`` (N, nu, 10) ``actuator_gainprm``, ``bias`` (N, nu, 10)
-    ``actuator_biasprm``, ``force_range`` (N, nu, 2) ``actuator_forcerange``; ``limits`` (J,) torque limits
-    [N·m]. The formula is `write_actuator_fields`'."""
+    ``actuator_biasprm``, ``force_range`` (N, nu, 2) ``actuator_forcerange``; ``limits`` (J,) or (N, J) torque
+    limits [N·m]. The formula is `write_actuator_fields`'."""
     strength = np.asarray(params.motor_strength, dtype=float)
     if np.any(strength < 0):
         raise ValueError("motor_strength: expected values >= 0 (the strength scales the PD's force range)")
-    friction = np.zeros((len(strength), len(limits))) if params.motor_friction is None else params.motor_friction
+    friction = np.zeros((len(strength), limits.shape[-1])) if params.motor_friction is None else params.motor_friction
     write_actuator_fields(gain, bias, force_range, params.kp, params.kd, strength, np.asarray(friction), limits)
 
 
@@ -260,12 +261,12 @@ def write_actuator_fields(gain, bias, force_range, kp, kd, strength, motor_frict
         kp, kd: (N, J) PD gains [N·m/rad, N·m·s/rad].
         strength: (N, J) motor strength factors, ≥ 0 (scales the PD's gains and force range).
         motor_friction: (N, J) Coulomb motor friction [N·m].
-        limits: (J,) torque limits [N·m].
+        limits: (J,) torque limits [N·m], or (N, J) per world (morphology variants of different sizes).
         friction_velocity: the velocity [rad/s] at which the friction actuator saturates.
 
     Rows 0 … J−1 are the PD actuators, J … 2J−1 the motor friction (`frbench.backends.mujoco_model`).
     """
-    j = limits.shape[0]
+    j = limits.shape[-1]
     gain[:, :j, 0] = strength * kp
     bias[:, :j, 1] = -strength * kp
     bias[:, :j, 2] = -strength * kd

@@ -8,7 +8,7 @@ Pinocchio load). What this adds, and why:
   body with exactly the file's inertia;
 * each body's collisions with all its ancestors excluded (MuJoCo only excludes
   parent/child; Bullet's ``URDF_USE_SELF_COLLISION_EXCLUDE_ALL_PARENTS`` does this),
-  and the pairs of :func:`~frbench.robots.sim_urdf.self_collision_exclusions`;
+  and the pairs of :func:`~frbench.robots.sim_urdf.self_collision_exclusions` that are not such pairs already;
 * two native actuators per joint, so that MuJoCo computes the actuation of
   `frbench.backends.base.actuator_torque` itself at every physics step and one
   ``Batch.step(nstep=substeps)`` call advances a whole control period:
@@ -65,11 +65,14 @@ def build_spec(spec: RobotSpec, terrain, friction: float = 1.0) -> mujoco.MjSpec
     sensor.type = mujoco.mjtSensor.mjSENS_ACCELEROMETER
     sensor.objtype = mujoco.mjtObj.mjOBJ_SITE
     sensor.objname = site.name
+    lineage = sim.lineage()  # every ancestor/descendant pair, excluded here or (the parent) by MuJoCo
     for link in sim.links:
         for ancestor in sim.ancestors(link)[1:]:  # the parent is excluded by MuJoCo already
             exclude = mj.add_exclude()
             exclude.bodyname1, exclude.bodyname2 = ancestor, link
     for link_a, link_b in self_collision_exclusions(spec):
+        if frozenset((link_a, link_b)) in lineage:  # excluded already: a second entry changes nothing but the
+            continue  # model's layout (files that differ only in their joint zero compile alike)
         exclude = mj.add_exclude()
         exclude.bodyname1, exclude.bodyname2 = link_a, link_b
     for geom in mj.geoms:

@@ -65,6 +65,7 @@ from frbench.backends.base import (
     check_base_force,
     check_targets,
     divergence_mask,
+    torque_limit_rows,
 )
 from frbench.backends.contact_layout import on_device
 from frbench.backends.mujoco_backend import (
@@ -181,7 +182,7 @@ class MujocoWarpBackend(ModelLayout):
                                                                  "actuator_forcerange", "geom_friction", "body_mass")}
         self._overflow_mask = buffer_overflow_mask()
         self._graph = None  # the CUDA graph of one control period, captured on first use (None: not yet tried)
-        self._limits = np.asarray(spec.torque_limits)
+        self._limits = torque_limit_rows(spec, n, variants)  # (J,) or (N, J) [N·m]
         self._base_force = np.zeros((n, 3))
         self._mass_changed = False  # a payload or friction was written since the model was put
         self._com_current = False  # ``subtree_com`` holds the current state's (device arrays: after every period)

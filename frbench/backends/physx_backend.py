@@ -83,7 +83,7 @@ class PhysxBackend(ExplicitPdBatch):
         self._joint_dof = self.sims[0].joint_dof  # the same in every simulation (variants share the joints)
         if any(sim.joint_dof != self._joint_dof or sim.dof != self.sims[0].dof for sim in self.sims):
             raise ValueError("physx backend: the morphology variants' joints differ from the robot's")
-        self._init_batch(spec, self.num_envs)
+        self._init_batch(spec, self.num_envs, variants)
 
     # ------------------------------------------------------------------ params
     def set_params(self, params: PhysicsParams) -> None:

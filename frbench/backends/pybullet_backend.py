@@ -140,7 +140,7 @@ class PybulletBackend(ExplicitPdBatch):
         self.sims = [
             _Simulation(specs[k], str(sim_robot_file(specs[k]).path), self.terrain, self.link_names) for k in assignment
         ]
-        self._init_batch(spec, self.num_envs)
+        self._init_batch(spec, self.num_envs, variants)
 
     # ------------------------------------------------------------------ params
     def set_params(self, params: PhysicsParams) -> None:

@@ -34,7 +34,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--terrains", default=None, help="comma-separated families (default: all seven)")
     p.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE", dest="fields",
                    help="set one training-env config field on top of the preset (repeatable), e.g. seed=1, "
-                        "action_hold=10, rise_start_fraction=0.3, curriculum=false (docs/training.md lists them)")
+                        "action_hold=10, rise_start_fraction=0.3, curriculum=false (docs/training.md lists them); "
+                        "with --resume only bodies=paper|wide (a new stage, the robots are redrawn)")
     p.add_argument("--motion-penalties", type=float, default=None, metavar="SCALE",
                    help="joint velocity/acceleration/torque penalties at SCALE x the paper's weights (new runs: "
                         "default 0.1; with --resume: a new reward stage from the run's current step)")
@@ -120,6 +121,19 @@ def field_changes(assignments: list[str]) -> dict:
     return changes
 
 
+def stage_field_changes(assignments: list[str]) -> dict:
+    """Config field → value from ``--set FIELD=VALUE`` on a resumed run: only `config.STAGE_FIELDS` may change."""
+    from frbench.errors import FrbenchError
+    from frbench.training.config import STAGE_FIELDS
+
+    changes = field_changes(assignments)
+    refused = sorted(set(changes) - set(STAGE_FIELDS))
+    if refused:
+        raise FrbenchError(f"--resume --set {refused[0]}: a resumed run keeps its config; --set changes only "
+                           f"{', '.join(STAGE_FIELDS)} there (a new stage)")
+    return changes
+
+
 def new_run_config(args, command: str, weights: dict[str, float], ranges: dict):
     """(env config, rsl-rl overrides) of a new run: the preset, then the flags and ``--set`` fields on top."""
     import dataclasses
@@ -194,11 +208,12 @@ def run(args) -> int:
         raise FrbenchError(f"--entropy-coef {args.entropy_coef}: expected a coefficient >= 0")
     algorithm = {} if args.entropy_coef is None else {"entropy_coef": float(args.entropy_coef)}
     if args.resume:
-        if args.fields or args.preset != "paper":
-            raise FrbenchError("--resume continues a run with its own config; --preset and --set apply to new runs")
+        if args.preset != "paper":
+            raise FrbenchError("--resume continues a run with its own config; --preset applies to new runs")
         run_ = TrainingRun(args.resume, total_steps=int(args.steps) if args.steps else None, resume=True,
                            checkpoint_every=args.checkpoint_every, command=command, reward_stage=weights,
-                           morphology_stage=ranges, backend_stage=args.backend, algorithm_stage=algorithm, **device)
+                           morphology_stage=ranges, backend_stage=args.backend, algorithm_stage=algorithm,
+                           field_stage=stage_field_changes(args.fields), **device)
     else:
         if args.method not in METHODS and args.method != ADAPTATION_METHOD:
             raise unknown_name("training method", args.method, METHODS)

@@ -33,7 +33,9 @@ own convention (`HUMANOID_REASON`).
 Policies use the frame through `JointFrame.observation`, `JointFrame.to_joints`
 and `JointFrame.canonical_spec` (`frbench.evaluation.episodes.run_episodes`, the
 training core env): the `scripted` controller, learned policies and layouts that
-declare ``joint_frame: canonical`` never see a robot's own convention.
+declare ``joint_frame: canonical`` never see a robot's own convention. A training
+batch of robots of several conventions (wide bodies) maps each environment
+through its robot's frame (`frbench.robots.batch_frame`).
 """
 
 from __future__ import annotations
@@ -146,18 +148,7 @@ class JointFrame:
         """The proprioception dict (`frbench.tasks.observations`) in the canonical frame: ``joint_pos`` and
         ``previous_action`` (targets [rad]) through `to_canonical`, ``joint_vel`` through `velocities`,
         ``base_angvel`` and ``projected_gravity`` through `body_vectors`. The identity frame returns ``obs`` itself."""
-        if self.is_identity:
-            return obs
-        mapped = dict(obs)
-        for key in ("joint_pos", "previous_action"):
-            if key in obs:
-                mapped[key] = self.to_canonical(obs[key])
-        if "joint_vel" in obs:
-            mapped["joint_vel"] = self.velocities(obs["joint_vel"])
-        for key in ("base_angvel", "projected_gravity"):
-            if key in obs:
-                mapped[key] = self.body_vectors(obs[key])
-        return mapped
+        return obs if self.is_identity else canonical_observation(self, obs)
 
     def targets(self, canonical):
         """Joint targets from a policy in the canonical frame, (N, n_joints) [rad] (numpy, as float64, or torch on
@@ -187,6 +178,23 @@ class JointFrame:
         return {"convention": "canonical[j] = sign[j] * q[order[j]] + offset[j]", "sign": list(self.sign),
                 "offset": list(self.offset), "order": list(self.order), "turned": self.turned,
                 "knees": dict(zip(QUADRUPED_LEGS, self.knees))}
+
+
+def canonical_observation(frame, obs: dict) -> dict:
+    """The proprioception dict ``obs`` through ``frame`` (a `JointFrame`, or a batch's
+    `frbench.robots.batch_frame.BatchJointFrame`): ``joint_pos`` and ``previous_action`` through its
+    ``to_canonical``, ``joint_vel`` through ``velocities``, ``base_angvel`` and ``projected_gravity`` through
+    ``body_vectors``; other entries as they are (a new dict)."""
+    mapped = dict(obs)
+    for key in ("joint_pos", "previous_action"):
+        if key in obs:
+            mapped[key] = frame.to_canonical(obs[key])
+    if "joint_vel" in obs:
+        mapped["joint_vel"] = frame.velocities(obs["joint_vel"])
+    for key in ("base_angvel", "projected_gravity"):
+        if key in obs:
+            mapped[key] = frame.body_vectors(obs[key])
+    return mapped
 
 
 def _leg_axis_signs(tree, zero, spec: RobotSpec, joints: tuple[int, int, int]) -> list[float]:
@@ -258,21 +266,3 @@ def learner_joint_frame(kind: str, residual: bool) -> str:
     """The joint frame frbench's trainers give a policy: ``canonical`` for a quadruped's plain policy, ``robot``
     for a residual one (its base controller maps the robot's joints itself) or a humanoid's (no canonical frame)."""
     return "canonical" if kind == "quadruped" and not residual else "robot"
-
-
-def shared_joint_frame(specs) -> JointFrame:
-    """The one canonical joint frame of a batch of robots ``specs`` (a training population, which maps every
-    environment through one frame): that of ``specs[0]``.
-
-    Raises:
-        JointFrameError: a robot has no frame, or two robots' signs or offsets differ.
-    """
-    frames = {}
-    for spec in specs:
-        frames.setdefault(spec.urdf_path, joint_frame(spec))
-    first = frames[specs[0].urdf_path]
-    for frame in frames.values():
-        if (frame.sign, frame.offset) != (first.sign, first.offset):
-            raise JointFrameError(f"robots {first.robot!r} and {frame.robot!r} have different canonical joint frames; "
-                                  "a training batch maps every environment through one frame")
-    return first

@@ -62,6 +62,30 @@ outside them).
   x and z swapped). Its joint limits are converted to Go2's sign convention; its
   calf, a Ø0.030 cylinder, becomes a 0.03 × 0.03 box.
 
+File conventions
+----------------
+By default a morphology's file has Go2's joint convention (the canonical one of
+`frbench.robots.joint_frame`). Three fields give it another, as real robot files
+have, without changing what the canonical frame sees:
+
+* ``knees``: where the standing knees of the file's front and rear legs point.
+  A forward knee is the backward leg mirrored front to back (thigh and calf
+  angles negated, limits mirrored). Four forward knees make the file the robot
+  *turned around* (its front legs are the canonical rear legs, ANYmal- and
+  Solo-like), so `joint_frame` turns it back; one pair forward is mirrored per
+  leg (knees pointing inwards or outwards).
+* ``joint_axes``: the directions (±1) of the file's hip (x), thigh and calf (y)
+  joint axes (Mini Cheetah's file turns thigh and calf about −y).
+* ``zero_pose``: the canonical (thigh, calf) angles [rad] of the file's joint
+  zero, written as a rotation in the thigh and calf joints' origins (Spirit 40
+  folds its legs at zero: (π/2, −π)).
+
+The standing pose and limits of `default_pose` and `joint_limits` are in the
+file's convention; mapped by the file's canonical frame (`canonical = sign · q +
+offset`, `expected_frame`) they are the Go2-convention pose and limits of the
+same morphology (`canonical_pose`, `canonical_limits`). With the default
+fields every value, and the URDF text, is what it was before these fields.
+
 Units are SI throughout: metres, kilograms, radians, newton-metres, seconds. A morphology's URDF and
 `RobotSpec` are written by `frbench.robots.morphology_urdf`.
 """
@@ -77,13 +101,21 @@ import numpy as np
 from frbench.robots.spec import QUADRUPED_LEGS
 
 __all__ = [
+    "CONVENTION_FIELDS",
     "FOOT_LINKS",
     "HIP_X_MARGIN",
     "JOINT_NAMES",
+    "KNEE_DIRECTIONS",
     "MORPHOLOGY_RANGES",
     "MorphologyParams",
+    "canonical_limits",
+    "canonical_pose",
     "default_pose",
+    "expected_frame",
     "hip_position",
+    "is_go2_convention",
+    "is_turned",
+    "knee_mirror",
     "joint_limits",
     "morphology_ranges",
     "nominal_height",
@@ -122,6 +154,12 @@ JOINT_NAMES: tuple[str, ...] = tuple(
 FOOT_LINKS: tuple[str, ...] = tuple(f"{leg}_foot" for leg in QUADRUPED_LEGS)
 
 Inertia3 = tuple[float, float, float]
+
+#: The values of ``MorphologyParams.knees``: where a standing knee points.
+KNEE_DIRECTIONS = ("backward", "forward")
+#: The fields of a file's joint convention (module docstring, "File conventions"); at their defaults the file
+#: is Go2's convention and `frbench.training.randomization.params_hash` leaves them out.
+CONVENTION_FIELDS = ("knees", "joint_axes", "zero_pose")
 
 # Fields that must be > 0 (masses, sizes, limits of effort/speed, stiffness).
 _POSITIVE_FIELDS = (
@@ -240,6 +278,15 @@ class MorphologyParams:
     kd: float = 0.5
     """PD damping of every joint [N·m·s/rad] (≥ 0)."""
 
+    knees: tuple[str, str] = ("backward", "backward")
+    """Where the standing knees of the file's front and rear legs point, each ``"backward"`` (Go2) or
+    ``"forward"``; both forward: the robot turned around (module docstring, "File conventions")."""
+    joint_axes: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    """Directions (±1) of the file's hip (x), thigh (y) and calf (y) joint axes (Mini Cheetah: (1, −1, −1))."""
+    zero_pose: tuple[float, float] = (0.0, 0.0)
+    """Canonical (thigh, calf) angles [rad] at the file's joint zero; (0, 0): legs straight down (Spirit 40:
+    (π/2, −π), folded)."""
+
     trunk_inertia: Inertia3 | None = None
     """Diagonal (Ixx, Iyy, Izz) of the trunk about its centre [kg·m²]; ``None``: solid box."""
     hip_inertia: Inertia3 | None = None
@@ -248,6 +295,9 @@ class MorphologyParams:
     """Diagonal inertia of one thigh link [kg·m²]; ``None``: solid box."""
     calf_inertia: Inertia3 | None = None
     """Diagonal inertia of one calf link [kg·m²]; ``None``: solid box."""
+
+
+_CONVENTION_DEFAULTS = {f.name: f for f in dataclasses.fields(MorphologyParams) if f.name in CONVENTION_FIELDS}
 
 
 # --------------------------------------------------------------------------- validation
@@ -307,6 +357,21 @@ def validate(params: MorphologyParams) -> None:
     shift = params.trunk_com_shift
     if len(shift) != 3 or not all(_is_finite_number(v) for v in shift):
         raise ValueError(f"MorphologyParams.trunk_com_shift must be three finite numbers [m], got {shift!r}")
+    _validate_convention(params)
+
+
+def _validate_convention(params: MorphologyParams) -> None:
+    """ValueError naming ``knees``, ``joint_axes`` or ``zero_pose`` when it is not a file convention."""
+    knees = params.knees
+    if not (isinstance(knees, tuple) and len(knees) == 2 and all(k in KNEE_DIRECTIONS for k in knees)):
+        raise ValueError(f"MorphologyParams.knees must be (front, rear), each one of {', '.join(KNEE_DIRECTIONS)}; "
+                         f"got {knees!r}")
+    axes = params.joint_axes
+    if not (len(axes) == 3 and all(_is_finite_number(a) and a in (1.0, -1.0) for a in axes)):
+        raise ValueError(f"MorphologyParams.joint_axes must be three of ±1 (hip, thigh, calf), got {axes!r}")
+    zero = params.zero_pose
+    if not (len(zero) == 2 and all(_is_finite_number(z) and abs(z) <= math.pi for z in zero)):
+        raise ValueError(f"MorphologyParams.zero_pose must be two angles in [-pi, pi] [rad] (thigh, calf), got {zero!r}")
 
 
 # --------------------------------------------------------------------------- sampling
@@ -381,8 +446,9 @@ def leg_signs(leg: str) -> tuple[float, float]:
     return (1.0 if leg[0] == "F" else -1.0), (1.0 if leg[1] == "L" else -1.0)
 
 
-def default_pose(params: MorphologyParams) -> tuple[float, ...]:
-    """Standing joint angles [rad], shape (12,), canonical order (hip mirrored on the right)."""
+def canonical_pose(params: MorphologyParams) -> tuple[float, ...]:
+    """Standing joint angles [rad] in Go2's (the canonical) convention, shape (12,), legs FL, FR, RL, RR (hip
+    mirrored on the right)."""
     pose: list[float] = []
     for leg in QUADRUPED_LEGS:
         sx, sy = leg_signs(leg)
@@ -391,8 +457,8 @@ def default_pose(params: MorphologyParams) -> tuple[float, ...]:
     return tuple(float(q) for q in pose)
 
 
-def joint_limits(params: MorphologyParams) -> tuple[tuple[float, ...], tuple[float, ...]]:
-    """(lower, upper) position limits [rad], each shape (12,), canonical order.
+def canonical_limits(params: MorphologyParams) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """(lower, upper) position limits [rad] in Go2's (the canonical) convention, each shape (12,).
 
     Right legs mirror the hip range: [−hip_upper, −hip_lower].
     """
@@ -409,6 +475,70 @@ def joint_limits(params: MorphologyParams) -> tuple[tuple[float, ...], tuple[flo
             lower.append(float(lo))
             upper.append(float(hi))
     return tuple(lower), tuple(upper)
+
+
+def is_go2_convention(params: MorphologyParams) -> bool:
+    """Whether the file has Go2's convention (every convention field at its default)."""
+    return all(getattr(params, name) == field.default for name, field in _CONVENTION_DEFAULTS.items())
+
+
+def is_turned(params: MorphologyParams) -> bool:
+    """Whether the file is the robot turned around: both pairs of knees point forward (module docstring)."""
+    return params.knees == ("forward", "forward")
+
+
+def expected_frame(params: MorphologyParams) -> tuple[tuple[float, ...], tuple[float, ...], bool]:
+    """(sign (12,), offset (12,) [rad], turned) of the file's canonical joint frame, ``canonical[j] =
+    sign[j] · q[order[j]] + offset[j]`` (`frbench.robots.joint_frame.JointFrame`), from the convention fields: per
+    canonical leg, hip sign ``a_h`` (−a_h turned), thigh and calf signs ``m · a`` (m = −1 for a forward knee),
+    offsets ``zero_pose`` (0 where zero)."""
+    turned = is_turned(params)
+    a_h, a_t, a_c = (float(a) for a in params.joint_axes)
+    sign, offset = [], []
+    for k in range(len(QUADRUPED_LEGS)):
+        mirror = knee_mirror(params, QUADRUPED_LEGS[_file_leg(k, turned)])
+        sign += [-a_h if turned else a_h, mirror * a_t, mirror * a_c]
+        offset += [0.0] + [float(z) + 0.0 for z in params.zero_pose]
+    return tuple(sign), tuple(offset), turned
+
+
+def _file_leg(k: int, turned: bool) -> int:
+    """The file's leg (index into FL, FR, RL, RR) that is canonical leg ``k`` (the same leg unless turned)."""
+    return len(QUADRUPED_LEGS) - 1 - k if turned else k
+
+
+def knee_mirror(params: MorphologyParams, leg: str) -> float:
+    """−1 when the file's leg ``leg`` (FL, FR, RL, RR) has its knee forward, else +1."""
+    direction = params.knees[0] if leg_signs(leg)[0] > 0 else params.knees[1]
+    return -1.0 if direction == "forward" else 1.0
+
+
+def _file_angles(params: MorphologyParams, canonical: tuple[float, ...]) -> tuple[float, ...]:
+    """Canonical joint angles [rad] (12,) as the file's: per file leg the inverse of its canonical frame."""
+    sign, offset, turned = expected_frame(params)
+    out = [0.0] * len(canonical)
+    for k in range(len(QUADRUPED_LEGS)):
+        leg = _file_leg(k, turned)
+        for j in range(3):
+            c = 3 * k + j
+            out[3 * leg + j] = float(sign[c] * (canonical[c] - offset[c])) + 0.0
+    return tuple(out)
+
+
+def default_pose(params: MorphologyParams) -> tuple[float, ...]:
+    """Standing joint angles [rad], shape (12,), in the file's convention (`canonical_pose` for Go2's)."""
+    pose = canonical_pose(params)
+    return pose if is_go2_convention(params) else _file_angles(params, pose)
+
+
+def joint_limits(params: MorphologyParams) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """(lower, upper) position limits [rad], each shape (12,), in the file's convention (`canonical_limits` for
+    Go2's; a limit pair whose sign flips swaps ends)."""
+    lower, upper = canonical_limits(params)
+    if is_go2_convention(params):
+        return lower, upper
+    a, b = _file_angles(params, lower), _file_angles(params, upper)
+    return tuple(min(x, y) for x, y in zip(a, b)), tuple(max(x, y) for x, y in zip(a, b))
 
 
 def nominal_height(params: MorphologyParams) -> float:

@@ -2,7 +2,12 @@
 
 Primitive geometry only (a box trunk, cylinder hips, box or cylinder thighs and calves, sphere feet), inertias
 from the solids unless the parameters give them, joints in frbench's canonical order (FL, FR, RL, RR × hip,
-thigh, calf). `cached_spec` writes the URDF once per distinct text (atomically) and returns its spec.
+thigh, calf). The file's joint convention (`frbench.robots.morphology`, "File conventions") is written into
+the joints: an axis of direction −1 as ``-1 0 0`` / ``0 -1 0``, a joint zero that is not a straight leg as a
+rotation about y in the thigh and calf joints' origins (the geometric zero angle, ``m · zero_pose`` with m = −1
+on a leg whose knee points forward), and the standing pose and limits in the file's convention. With Go2's
+convention the text is what it always was. `cached_spec` writes the URDF once per distinct text (atomically)
+and returns its spec.
 Units are SI: metres, kilograms, radians, newton-metres, seconds.
 """
 
@@ -18,7 +23,9 @@ from frbench.robots.morphology import (
     MorphologyParams,
     default_pose,
     hip_position,
+    is_go2_convention,
     joint_limits,
+    knee_mirror,
     leg_signs,
     nominal_height,
     total_mass,
@@ -83,12 +90,14 @@ def _geometry(origin_xyz: str, shape: str, rpy: str = "0 0 0") -> str:
 
 
 def _joint(name: str, parent: str, child: str, xyz: str, axis: str | None = None,
-           limit: tuple[float, float, float, float] | None = None) -> str:
-    """A revolute joint (``axis`` and ``limit`` = (lower, upper, effort, velocity) given) or a fixed one."""
+           limit: tuple[float, float, float, float] | None = None, pitch: float = 0.0) -> str:
+    """A revolute joint (``axis`` and ``limit`` = (lower, upper, effort, velocity) given) or a fixed one; its
+    origin turned by ``pitch`` [rad] about y (the child's zero angle; 0 written as ``rpy="0 0 0"``)."""
     kind = "fixed" if axis is None else "revolute"
+    rpy = "0 0 0" if pitch == 0.0 else f"0 {_num(pitch)} 0"
     text = (
         f'  <joint name="{name}" type="{kind}">\n'
-        f'    <origin xyz="{xyz}" rpy="0 0 0"/>\n'
+        f'    <origin xyz="{xyz}" rpy="{rpy}"/>\n'
         f'    <parent link="{parent}"/>\n'
         f'    <child link="{child}"/>\n'
     )
@@ -123,20 +132,29 @@ def _leg(p: MorphologyParams, leg: str, hip_xy: tuple[float, float],
     thigh_box = f'box size="{_vec(p.thigh_height, p.thigh_width, p.thigh_length)}"'
     calf_box = f'box size="{_vec(p.calf_height, p.calf_width, p.calf_length)}"'
     cylinder = f'cylinder radius="{_num(p.hip_radius)}" length="{_num(p.hip_length)}"'
+    hip_axis, thigh_axis, calf_axis = _axes(p)
+    mirror = knee_mirror(p, leg)
+    thigh_zero, calf_zero = (mirror * z + 0.0 for z in p.zero_pose)  # geometric zero angles about +y [rad]
     return "".join((
-        _joint(f"{hip}_joint", "base", hip, _vec(sx * hip_xy[0], sy * hip_xy[1], 0.0), "1 0 0",
+        _joint(f"{hip}_joint", "base", hip, _vec(sx * hip_xy[0], sy * hip_xy[1], 0.0), hip_axis,
                (lower[0], upper[0], p.hip_torque, p.hip_velocity)),
         _link(hip, p.hip_mass, hip_centre, hip_inertia, _geometry(hip_centre, cylinder, "1.5707963267948966 0 0")),
-        _joint(f"{thigh}_joint", hip, thigh, _vec(0.0, sy * p.hip_length, 0.0), "0 1 0",
-               (lower[1], upper[1], p.thigh_torque, p.thigh_velocity)),
+        _joint(f"{thigh}_joint", hip, thigh, _vec(0.0, sy * p.hip_length, 0.0), thigh_axis,
+               (lower[1], upper[1], p.thigh_torque, p.thigh_velocity), thigh_zero),
         _link(thigh, p.thigh_mass, thigh_centre, thigh_inertia, _geometry(thigh_centre, thigh_box)),
-        _joint(f"{calf}_joint", thigh, calf, _vec(0.0, 0.0, -p.thigh_length), "0 1 0",
-               (lower[2], upper[2], p.calf_torque, p.calf_velocity)),
+        _joint(f"{calf}_joint", thigh, calf, _vec(0.0, 0.0, -p.thigh_length), calf_axis,
+               (lower[2], upper[2], p.calf_torque, p.calf_velocity), calf_zero),
         _link(calf, p.calf_mass, calf_centre, calf_inertia, _geometry(calf_centre, calf_box)),
         _joint(f"{foot}_joint", calf, foot, _vec(0.0, 0.0, -p.calf_length)),
         _link(foot, p.foot_mass, "0 0 0", sphere_inertia(p.foot_mass, p.foot_radius),
               _geometry("0 0 0", f'sphere radius="{_num(p.foot_radius)}"')),
     ))
+
+
+def _axes(p: MorphologyParams) -> tuple[str, str, str]:
+    """The hip (x), thigh and calf (y) joint axes of the file, ``joint_axes`` directions."""
+    a_h, a_t, a_c = ("1" if a > 0 else "-1" for a in p.joint_axes)
+    return f"{a_h} 0 0", f"0 {a_t} 0", f"0 {a_c} 0"
 
 
 def urdf_string(params: MorphologyParams, name: str = "morph") -> str:
@@ -216,8 +234,16 @@ def spec_from_params(
         collision_shapes=shapes,
         source=source,
         license=license,
-        notes=f"primitive-geometry quadruped, total mass {total_mass(params):.3f} kg",
+        notes=f"primitive-geometry quadruped, total mass {total_mass(params):.3f} kg" + _convention_note(params),
     )
+
+
+def _convention_note(params: MorphologyParams) -> str:
+    """``""`` for Go2's convention, else the file's knees, axes and zero pose."""
+    if is_go2_convention(params):
+        return ""
+    return (f"; knees {params.knees[0]} (front), {params.knees[1]} (rear), joint axes {params.joint_axes}, "
+            f"zero pose {params.zero_pose} rad")
 
 
 def cached_spec(params: MorphologyParams, name: str, path: str | Path, **spec_kwargs) -> RobotSpec:

@@ -93,6 +93,10 @@ class SimRobotFile:
             current = parents[current]
         return out
 
+    def lineage(self) -> frozenset[frozenset[str]]:
+        """Every pair of links one of which is an ancestor of the other (never in contact in either simulator)."""
+        return frozenset(frozenset((ancestor, link)) for link in self.links for ancestor in self.ancestors(link))
+
     @property
     def total_mass(self) -> float:
         """Sum of link masses [kg]."""
@@ -451,3 +455,10 @@ def self_collision_exclusions(spec: RobotSpec) -> tuple[tuple[str, str], ...]:
             b = model.body(model.geom_bodyid[contact.geom2]).name
             pairs.add(tuple(sorted((a, b))))
     return tuple(sorted(pairs))
+
+
+def crossing_links(spec: RobotSpec) -> tuple[tuple[str, str], ...]:
+    """The pairs of `self_collision_exclusions` that are not ancestor and descendant: unrelated links (two legs,
+    a leg and the trunk) that overlap at the standing or the zero pose and so pass through each other."""
+    lineage = sim_robot_file(spec).lineage()
+    return tuple(pair for pair in self_collision_exclusions(spec) if frozenset(pair) not in lineage)

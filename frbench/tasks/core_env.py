@@ -106,9 +106,10 @@ class CoreEnv:
         #: whether the backend's arrays (and so everything the env computes) are torch tensors on a device
         self.device_arrays = bool(getattr(self.backend, "device_arrays", False))
         try:
+            env_specs = None if variants is None else [variants[0][k] for k in np.asarray(variants[1])]
             self.task = RecoveryTask(spec, self.backend, terrain, self.num_envs, noise_rng=noise_rng,
                                      ground_height=ground_height, nominal_height=nominal_height,
-                                     track_metrics=track_metrics, surface_rules=surface_rules)
+                                     track_metrics=track_metrics, surface_rules=surface_rules, env_specs=env_specs)
         except Exception:
             self.backend.close()
             raise

@@ -94,6 +94,10 @@ class RecoveryTask:
         surface_rules: apply protocol 1.1's surface rule (`StartSurface`, on ``terrain``) and a humanoid's
             torso-tilt rule (`TorsoFrame`); the training env, on a world of many terrain tiles, passes False and
             its curriculum reads the tilt, height, contact and displacement conditions only.
+        env_specs: each episode's robot (N) when the backend simulates several (morphology variants), or None:
+            ``spec`` in every one. Where their joint limits, standing poses or gains differ (files of different
+            joint conventions or sizes), ``lower``, ``upper``, ``default_pose`` and the nominal gains are (N, J)
+            rows, else the (J,) values of ``spec``.
 
     After ``reset`` (or ``begin``): ``state`` (`RobotState`), ``contacts`` (`Contacts`), ``params`` (the episode's
     `PhysicsParams`), ``success`` (`SuccessTracker`), ``metrics`` (`EpisodeMetrics` or None),
@@ -111,7 +115,7 @@ class RecoveryTask:
     def __init__(self, spec: RobotSpec, backend, terrain, num_envs: int, noise_rng=None,
                  ground_height: Callable[[np.ndarray], np.ndarray] | None = None,
                  nominal_height: "float | np.ndarray | None" = None, track_metrics: bool = True,
-                 surface_rules: bool = True):
+                 surface_rules: bool = True, env_specs=None):
         self.spec = spec
         self.terrain = terrain
         self.num_envs = num_envs
@@ -132,9 +136,11 @@ class RecoveryTask:
         self.surface_rules = surface_rules
         self.torso = torso_frame(spec) if surface_rules else None
         self.start_surface = None
-        self.lower, self.upper = np.asarray(spec.joint_lower), np.asarray(spec.joint_upper)
-        self.default_pose = np.asarray(spec.default_pose)
+        rows = _joint_rows(spec, env_specs)
+        self.lower, self.upper, self.default_pose = rows["joint_lower"], rows["joint_upper"], rows["default_pose"]
         self.nominal = PhysicsParams.nominal(spec, num_envs)
+        if rows["kp"].ndim == 2 or rows["kd"].ndim == 2:
+            self.nominal.kp, self.nominal.kd = _rows_of(rows["kp"], num_envs), _rows_of(rows["kd"], num_envs)
         self.t = 0
 
     # -- the physics outside an episode's steps: start banks, the assist force, the critic's ground truth -------
@@ -261,7 +267,7 @@ class RecoveryTask:
         self.params = self.nominal if params is None else params
         self.settle(starts, settle_steps)
         self.starts = screen_starts(self, starts, settle_steps)
-        return self._start_episodes(np.tile(self.default_pose, (n, 1)), copy_of(self.backend.diverged))
+        return self._start_episodes(_rows_of(self.default_pose, n), copy_of(self.backend.diverged))
 
     def begin(self, starts: RecordedStarts, params: PhysicsParams | None = None) -> dict[str, np.ndarray]:
         """Begin the episodes at recorded states (`RecordedStarts`, one per environment) under ``params``
@@ -361,6 +367,23 @@ class RecoveryTask:
         """`advance` one control step towards ``targets`` (N, n_joints) [rad]; return the observation."""
         self.advance(targets)
         return self.observation()
+
+
+def _joint_rows(spec: RobotSpec, env_specs) -> dict[str, np.ndarray]:
+    """``joint_lower``, ``joint_upper``, ``default_pose``, ``kp`` and ``kd`` of ``spec`` (J,), or of each of
+    ``env_specs`` (N, J) where one of them differs from ``spec``'s (a field at a time)."""
+    out = {}
+    for name in ("joint_lower", "joint_upper", "default_pose", "kp", "kd"):
+        own = np.asarray(getattr(spec, name), dtype=float)
+        if env_specs is not None and any(getattr(other, name) != getattr(spec, name) for other in env_specs):
+            own = np.array([getattr(other, name) for other in env_specs], dtype=float)
+        out[name] = own
+    return out
+
+
+def _rows_of(values: np.ndarray, n: int) -> np.ndarray:
+    """(n, J): ``values`` (J,) repeated, or the (n, J) rows themselves, as a new array."""
+    return np.tile(values, (n, 1)) if values.ndim == 1 else np.array(values)
 
 
 def _rows(states: list[RobotState], name: str):

@@ -27,6 +27,7 @@ from frbench.policies.scripted_humanoid import DEFAULT_GATE_PHASES, gate_phase_i
 from frbench.robots import get_robot
 from frbench.robots.morphology import morphology_ranges
 from frbench.terrains import FAMILIES
+from frbench.training.bodies import BODIES
 from frbench.training.dagger import ImitationSchedule
 from frbench.training.reward_tables import reward_table
 from frbench.training.teacher import ENV_TEACHERS
@@ -76,6 +77,14 @@ class TrainEnvConfig:
     #: Rows of the paper's morphology table replaced for this run, field → (low, high) [kg or m]
     #: (``morphology.morphology_ranges``); empty: the paper's table.
     morphology_ranges: Mapping[str, tuple[float, float]] = field(default_factory=lambda: MappingProxyType({}))
+    #: The body distribution of the sampled robots (`frbench.training.bodies.BODIES`): ``"paper"``, the paper's
+    #: morphology table (about 21-35 kg) in Go2's joint convention, or ``"wide"``, each paper-table draw resized
+    #: to a total mass log-uniform in 2-60 kg (lengths ·s, masses ·s³, torque limits and Kp ·s⁴, Kd ·s^4.5, motor
+    #: friction ·s⁴, payload ·s³, CoM shift ·s), its knees all backward, all forward, or forward on one pair, its
+    #: file turning thigh and calf about −y (Mini Cheetah) in half of them and folding its legs at joint zero
+    #: (Spirit 40) in half, normalised by the learner's canonical joint frame (docs/training.md, "Wider bodies").
+    #: A resumed run may switch it (``frbench train --resume RUN --set bodies=wide``: a new stage).
+    bodies: str = "paper"
     #: The reward table; None: the robot kind's (`reward_tables.reward_table`), filled in at construction.
     reward: RewardConfig | None = None
     history: int = 5
@@ -172,6 +181,12 @@ class TrainEnvConfig:
         need(self.num_envs >= 1, "num_envs", "at least 1 environment")
         need(self.backend in training_backend_names(), "backend", f"one of {', '.join(training_backend_names())}")
         need(self.num_morphologies >= 1, "num_morphologies", "at least 1 robot")
+        need(self.bodies in BODIES, "bodies", f"one of {', '.join(BODIES)}")
+        if self.bodies != "paper":
+            need(not self.robot, "bodies", "'paper' with a named robot (the bodies are those sampled)")
+            for name in ("demo_start_fraction", "rise_start_fraction"):  # one controller for the whole batch
+                need(getattr(self, name) == 0.0, name, f"0 with bodies {self.bodies!r} (their joint conventions differ)")
+            need(not self.base_controller, "base_controller", f"none with bodies {self.bodies!r}")
         need(self.episode_steps >= 1, "episode_steps", "at least 1 control step")
         need(self.settle_steps >= 0, "settle_steps", "at least 0 control steps")
         need(self.start_bank >= 0, "start_bank", "at least 0 settled starts per tile and robot (0: none)")
@@ -246,6 +261,9 @@ class TrainEnvConfig:
 
 #: Fields that ``--set`` cannot write: the reward table and the mappings have flags or presets of their own.
 UNSETTABLE_FIELDS = ("reward", "gain_ranges", "morphology_ranges", "base_controller_parameters")
+#: Fields that ``--set`` may change when a run resumes (``frbench train --resume RUN --set FIELD=VALUE``: a new
+#: stage, recorded in the run's config.json): the robots are redrawn, the policy goes on.
+STAGE_FIELDS = ("bodies",)
 
 
 def field_types() -> dict[str, object]:

@@ -112,13 +112,14 @@ def build_bundle(cfg, log=print) -> DeviceBundle:
     arrays = {f"world/{k}": v for k, v in world.fields.items()}
     arrays.update({"robots/assignment": robots.assignment, "robots/variant_friction": robots.variant_friction,
                    "robots/variant_payload": robots.variant_payload, "robots/group_masses": robots.group_masses,
+                   "robots/scales": robots.scales,
                    "raster/centres": raster.centres, "raster/heights": np.asarray(raster.heights, dtype=np.float32)})
     bank = parts.bank.to_arrays()
     bank.update({k: v.astype(np.float32) for k, v in bank.items() if k.startswith("state_")})
     arrays.update({f"bank/{k}": v for k, v in bank.items()})
     meta = {"format": FORMAT, "config": cfg.to_dict(), "specs": [_spec_data(s) for s in robots.specs],
             "link_names": list(world.link_names), "reward": _reward_data(parts.reward),
-            "frame": None if parts.frame is None else dataclasses.asdict(parts.frame),
+            "frame": _frame_data(parts.frame),
             "rng": _rng_state(parts.rng),
             "robots_rng": None if robots.rng is parts.rng else _rng_state(robots.rng),
             "curriculum": parts.curriculum.state_dict(),
@@ -127,6 +128,28 @@ def build_bundle(cfg, log=print) -> DeviceBundle:
         arrays.update({f"head/{k}": v for k, v in robots.head.to_arrays().items()})
         meta["head_standing_height"] = robots.head.standing_height
     return DeviceBundle(world.model, arrays, meta)
+
+
+def _frame_data(frame):
+    """The learner's joint frame as JSON: None, a `JointFrame`'s fields, or a `BatchJointFrame`'s frames (its
+    assignment is the robots', saved with them)."""
+    if frame is None:
+        return None
+    if hasattr(frame, "assignment"):
+        return {"batch": True, "frames": frame.to_dict()["frames"]}
+    return dataclasses.asdict(frame)
+
+
+def _frame_of(data, assignment):
+    """The joint frame `_frame_data` wrote, for environments of robot ``assignment`` (N,)."""
+    from frbench.robots.batch_frame import BatchJointFrame
+    from frbench.robots.joint_frame import JointFrame
+
+    if data is None:
+        return None
+    if data.get("batch"):
+        return BatchJointFrame.from_dict({"frames": data["frames"], "assignment": [int(k) for k in assignment]})
+    return JointFrame(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in data.items()})
 
 
 def _reward_data(reward) -> dict:
@@ -140,7 +163,6 @@ def _reward_data(reward) -> dict:
 def bundle_parts(bundle: DeviceBundle):
     """The `TrainingParts` saved in ``bundle`` (its generators at their saved states), without the CPU stack."""
     from frbench.backends.mujoco_warp_backend import CompiledWorld
-    from frbench.robots.joint_frame import JointFrame
     from frbench.training.curriculum import TerrainCurriculum
     from frbench.training.height_raster import HeightRaster
     from frbench.training.parts import TrainingParts
@@ -160,7 +182,7 @@ def bundle_parts(bundle: DeviceBundle):
         head = HeadPoints.from_arrays(a["head/origins"], a["head/axes"], a["head/joints"], assignment,
                                       meta["head_standing_height"])
     robots = TrainingRobots(cfg, robots_rng, specs, assignment, a["robots/variant_friction"],
-                            a["robots/variant_payload"], a["robots/group_masses"], head)
+                            a["robots/variant_payload"], a["robots/group_masses"], head, a.get("robots/scales"))
     curriculum = TerrainCurriculum(cfg.num_envs, np.random.default_rng(0), families=cfg.families,
                                    start_level=cfg.start_level)
     curriculum.load_state_dict(meta["curriculum"])
@@ -169,9 +191,7 @@ def bundle_parts(bundle: DeviceBundle):
     reward = dict(meta["reward"])
     if isinstance(reward["velocity_threshold"], list):
         reward["velocity_threshold"] = tuple(reward["velocity_threshold"])
-    frame = None
-    if meta["frame"] is not None:
-        frame = JointFrame(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in meta["frame"].items()})
+    frame = _frame_of(meta["frame"], assignment)
     bank = StartBank.from_arrays({k[len("bank/"):]: v for k, v in a.items() if k.startswith("bank/")})
     world = CompiledWorld(bundle.model, {k[len("world/"):]: v for k, v in a.items() if k.startswith("world/")},
                           tuple(meta["link_names"]))

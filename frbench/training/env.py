@@ -117,7 +117,8 @@ class RecoveryTrainingEnv(VecEnv):
                             long_history=cfg.long_history, episode_steps=cfg.episode_steps,
                             variants=self.robots.variants, ground_height=self._ground_height,
                             nominal_height=self.robots.nominal_height, track_metrics=False, surface_rules=False,
-                            privileged=PrivilegedGroups(self.raster, self.starts, self.robots), joint_frame=frame,
+                            privileged=PrivilegedGroups(self.raster, self.starts, self.robots, frame),
+                            joint_frame=frame,
                             device=self.device if on_device else None, world=parts.world)
         #: whether the backend's arrays live on the device (torch) rather than on the host (numpy)
         self.device_arrays = self.core.device_arrays

@@ -15,9 +15,12 @@ The core env adds ``policy`` and the histories and cleans every group (`CoreEnv.
 
 from __future__ import annotations
 
+import numpy as np
+
 from frbench.arrays import float_dtype, namespace, resident
 from frbench.tasks.observations import rotate_to_body
 from frbench.training.population import yaw_of
+from frbench.training.turned_groups import turned_groups
 
 #: Largest foot force [N] the critic sees, and its scale [N].
 FOOT_FORCE_CAP_N, FOOT_FORCE_SCALE_N = 500.0, 100.0
@@ -48,10 +51,14 @@ def privileged_groups(o_t, scan, masses, kp, kd, com_xy, group_contact, foot_for
 class PrivilegedGroups:
     """The groups above for the batch's ``robots`` (`population.TrainingRobots`) on the tiles ``starts`` put
     them on (`start_sources.CurriculumStarts`, ``tile_row``), the height scan from ``raster``
-    (`height_raster.HeightRaster`)."""
+    (`height_raster.HeightRaster`); with the learner's ``frame`` a `BatchJointFrame` that turns some robots
+    around, their rows seen from their canonical front (`turned_groups`)."""
 
-    def __init__(self, raster, starts, robots):
+    def __init__(self, raster, starts, robots, frame=None):
         self.raster, self.starts, self.robots = raster, starts, robots
+        turned = getattr(frame, "turned", None)
+        #: (N,) bool rows of turned robots, or None (no row is)
+        self.turned = turned if isinstance(turned, np.ndarray) and turned.any() else None
 
     def __call__(self, env, o_t):
         """Each group (N, ·) of the core env ``env`` now, its policy observation ``o_t`` (N, 6 + 3J) given (see the
@@ -59,6 +66,9 @@ class PrivilegedGroups:
         s, c, p = env.state, env.contacts, env.params.like(o_t)
         scan = self.raster.scan(self.starts.tiles(o_t), s.base_pos, yaw_of(s.base_quat))
         com_xy = self.robots.com_xy(s, env.whole_body_com())
-        return privileged_groups(o_t, scan, resident(self.robots.env_masses, o_t), p.kp, p.kd, com_xy,
-                                 c.group_contact, c.foot_force, p.friction, p.motor_strength, p.payload, s.base_quat,
-                                 s.base_linvel)
+        groups = privileged_groups(o_t, scan, resident(self.robots.env_masses, o_t), p.kp, p.kd, com_xy,
+                                   c.group_contact, c.foot_force, p.friction, p.motor_strength, p.payload, s.base_quat,
+                                   s.base_linvel)
+        if self.turned is None:
+            return groups
+        return turned_groups(groups, self.turned, o_t.shape[1], self.robots.env_masses.shape[1], p.kp.shape[1])

@@ -15,7 +15,8 @@ import dataclasses
 
 import numpy as np
 
-from frbench.robots.joint_frame import learner_joint_frame, shared_joint_frame
+from frbench.robots.batch_frame import batch_joint_frame
+from frbench.robots.joint_frame import learner_joint_frame
 from frbench.training.curriculum import TerrainCurriculum
 from frbench.training.height_raster import HeightRaster
 from frbench.training.population import TrainingRobots
@@ -33,7 +34,8 @@ class TrainingParts:
         robots: the batch's `TrainingRobots`.
         curriculum: the `TerrainCurriculum` (families and first levels).
         raster: the tiles' `HeightRaster`.
-        frame: the learner's `JointFrame` shared by the batch's robots, or None (the robots' own joints).
+        frame: the learner's `JointFrame` shared by the batch's robots, a `BatchJointFrame` (one per environment)
+            when their conventions differ (wide bodies), or None (the robots' own joints).
         reward: the reward table with the velocity limits resolved (`reward_tables.with_joint_velocity_limits`).
         bank: the `start_bank.StartBank`, or None (fresh starts every episode).
         world: the simulator's compiled world (`mujoco_warp_backend.CompiledWorld`), or None: compiled by the backend.
@@ -57,7 +59,7 @@ def build_parts(cfg, log=print) -> TrainingParts:
     robots = TrainingRobots.drawn(cfg, rng)
     spec = robots.spec
     canonical = learner_joint_frame(spec.kind, bool(cfg.base_controller)) == "canonical"
-    frame = shared_joint_frame(robots.specs) if canonical else None
+    frame = batch_joint_frame(robots.specs, robots.assignment) if canonical else None
     curriculum = TerrainCurriculum(cfg.num_envs, rng, families=cfg.families, start_level=cfg.start_level)
     if not cfg.curriculum:
         curriculum.level[:] = rng.integers(1, curriculum.max_level + 1, size=cfg.num_envs)

@@ -108,6 +108,13 @@ KICKSTART_SCRIPTED = MappingProxyType({
     "teacher": "scripted", "dagger_steps": 2e6, "dagger_rounds": 1, "dagger_beta": 0.0, "imitation_weight": 1.0,
     "imitation_until": 12e6, "dagger_noise": 0.2, "kickstart_beta": 0.25, "imitate_rows": "teacher"})
 
+#: ``kickstart-scripted``, which ``kickstart-scripted-wide`` extends.
+_KICKSTART_SCRIPTED = Preset(
+    "DAgger from the scripted controller into FR-Net's actor, then PPO with an imitation term toward scripted's "
+    "action that decays to 0 (kickstarting; presets.KICKSTART_SCRIPTED, docs/training.md)",
+    env=KICKSTART_SCRIPTED, init_std=0.2,
+    algorithm=MappingProxyType({"class_name": "frbench.training.imitation:KickstartPPO"}))
+
 PRESETS: Mapping[str, Preset] = MappingProxyType({
     "paper": Preset("random morphologies on all terrains, the paper's setup (the defaults)"),
     "demo-starts": Preset(
@@ -130,11 +137,13 @@ PRESETS: Mapping[str, Preset] = MappingProxyType({
         description="symmetry-assist with the morphology table widened to hold the benchmark's quadrupeds "
                     "(benchmarks/morphology_coverage.py)",
         env=MappingProxyType({**_SYMMETRY_ASSIST.env, "morphology_ranges": COVERING_MORPHOLOGY_RANGES})),
-    "kickstart-scripted": Preset(
-        "DAgger from the scripted controller into FR-Net's actor, then PPO with an imitation term toward scripted's "
-        "action that decays to 0 (kickstarting; presets.KICKSTART_SCRIPTED, docs/training.md)",
-        env=KICKSTART_SCRIPTED, init_std=0.2,
-        algorithm=MappingProxyType({"class_name": "frbench.training.imitation:KickstartPPO"})),
+    "kickstart-scripted": _KICKSTART_SCRIPTED,
+    "kickstart-scripted-wide": replace(
+        _KICKSTART_SCRIPTED,
+        description="kickstart-scripted on the wide bodies: 2-60 kg, knees backward, forward or forward on one "
+                    "pair, flipped joint axes and legs folded at joint zero (bodies=wide; training.bodies, "
+                    "docs/training.md)",
+        env=MappingProxyType({**KICKSTART_SCRIPTED, "bodies": "wide"})),
     "no-stability": Preset(
         "demo-starts without the stability reward terms (the frnet-no-stability ablation)",
         env=_DEMO_STARTS, drop_terms=STABILITY_TERMS),

@@ -192,8 +192,11 @@ def sample_morphologies(count: int, rng: np.random.Generator, base: MorphologyPa
 
 
 def params_hash(params: MorphologyParams) -> str:
-    """A 16-hex-digit key of every field of ``params`` (floats by ``repr``, exact)."""
-    text = repr(tuple((f.name, getattr(params, f.name)) for f in dataclasses.fields(params)))
+    """A 16-hex-digit key of every field of ``params`` (floats by ``repr``, exact); the file-convention fields
+    (`morphology.CONVENTION_FIELDS`) only where they differ from Go2's, so the keys of Go2-convention
+    morphologies are those they had before those fields existed."""
+    text = repr(tuple((f.name, getattr(params, f.name)) for f in dataclasses.fields(params)
+                      if f.name not in morphology.CONVENTION_FIELDS or getattr(params, f.name) != f.default))
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 

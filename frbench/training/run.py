@@ -150,7 +150,7 @@ class TrainingRun:
                  reward_stage: dict[str, float] | None = None, morphology_stage: dict | None = None,
                  train_overrides: dict | None = None, backend_stage: str | None = None,
                  algorithm_stage: dict[str, float] | None = None, device: str | None = None,
-                 bundle: Path | None = None):
+                 bundle: Path | None = None, field_stage: dict | None = None):
         """``method="rma-adaptation"`` is RMA's phase 2: ``teacher`` is a finished ``rma`` run folder whose
         policy is frozen while the adaptation module learns; its env config is reused (with a 50-frame
         long history), ``env_cfg`` is ignored.
@@ -163,7 +163,8 @@ class TrainingRun:
         ``resume``), a backend name, continues the run in that simulator (e.g. ``mujoco+pybullet``: a MuJoCo-trained
         policy fine-tuned in both), recorded as a stage too. ``algorithm_stage`` (with ``resume``), PPO setting →
         value (``entropy_coef``), changes rsl-rl's algorithm config from the run's current step, recorded the
-        same way. ``device`` (`frbench.backends.devices.parse_device`'s value): where a device simulator runs and
+        same way. ``field_stage`` (with ``resume``), env config field → value (`config.STAGE_FIELDS`, e.g.
+        ``{"bodies": "wide"}``), likewise: the run's robots are redrawn under the new value. ``device`` (`frbench.backends.devices.parse_device`'s value): where a device simulator runs and
         the run's tensors live; ``bundle``: a device bundle folder (`frbench.training.device_bundle`) whose parts
         the env is built from, built for this run's config. ``train_overrides`` (new runs)
         are merged into the method's rsl-rl config (e.g. ``{"actor": {"distribution_cfg": {"init_std": 0.2}}}``)
@@ -185,9 +186,10 @@ class TrainingRun:
             total_steps = total_steps or config["total_steps"]
             train_cfg = config["train_cfg"]
             new_backend = backend_stage if backend_stage and backend_stage != env_cfg.backend else None
-            if reward_stage or morphology_stage or new_backend or algorithm_stage:
+            fields = {k: v for k, v in (field_stage or {}).items() if getattr(env_cfg, k) != v}
+            if reward_stage or morphology_stage or new_backend or algorithm_stage or fields:
                 env_cfg = self._new_stage(config, env_cfg, reward_stage or {}, morphology_stage or {}, command,
-                                          new_backend, algorithm_stage or {})
+                                          new_backend, algorithm_stage or {}, fields)
                 train_cfg = config["train_cfg"]
         else:
             if (self.out / CONFIG_FILE).exists():
@@ -237,10 +239,10 @@ class TrainingRun:
 
     # ------------------------------------------------------------------ persistence
     def _new_stage(self, config: dict, env_cfg, weights: dict[str, float], morphology: dict, command: str,
-                   backend: str | None = None, algorithm: dict[str, float] | None = None):
-        """The env config with the reward ``weights``, ``morphology`` ranges and ``backend`` (None: unchanged)
-        changed; ``algorithm`` settings set in ``config["train_cfg"]["algorithm"]``; records the stage in
-        ``config`` (``__init__`` writes config.json)."""
+                   backend: str | None = None, algorithm: dict[str, float] | None = None, fields: dict | None = None):
+        """The env config with the reward ``weights``, ``morphology`` ranges, ``backend`` (None: unchanged) and
+        config ``fields`` changed; ``algorithm`` settings set in ``config["train_cfg"]["algorithm"]``; records the
+        stage in ``config`` (``__init__`` writes config.json)."""
         check_weights(weights)
         morphology_ranges(morphology)  # validates names and values before anything is written
         state_path = self.out / STATE_FILE
@@ -249,13 +251,19 @@ class TrainingRun:
         for term, weight in weights.items():
             reward = reward.with_weight(term, weight, f"reward stage from {steps} env steps ({command or 'resume'})")
         ranges = {**env_cfg.morphology_ranges, **{k: tuple(map(float, v)) for k, v in morphology.items()}}
-        env_cfg = dataclasses.replace(env_cfg, reward=reward, morphology_ranges=ranges, backend=backend or env_cfg.backend)
+        try:
+            env_cfg = dataclasses.replace(env_cfg, reward=reward, morphology_ranges=ranges,
+                                          backend=backend or env_cfg.backend, **(fields or {}))
+        except ValueError as exc:
+            raise FrbenchError(f"--resume {self.out}: {exc}") from None
         config["env"] = env_cfg.to_dict()
         stage = {"from_env_steps": steps, "weights": dict(weights), "command": command}
         if backend:
             stage["backend"] = backend
         if morphology:
             stage["morphology_ranges"] = {k: list(map(float, v)) for k, v in morphology.items()}
+        if fields:
+            stage["fields"] = dict(fields)
         if algorithm:
             config["train_cfg"]["algorithm"].update(algorithm)
             stage["algorithm"] = dict(algorithm)

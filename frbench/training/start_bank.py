@@ -73,10 +73,11 @@ class StartBank:
 
     def begin(self, env, rng: np.random.Generator, tile_row: np.ndarray, variant: np.ndarray, params) -> None:
         """Begin every episode of the core env ``env`` at a bank entry of its cell (`entries`) under ``params``; the
-        previous action at t = 0 is the default pose, as after a settle."""
+        previous action at t = 0 is each environment's robot's default pose, as after a settle."""
         rows = self.entries(rng, tile_row, variant)
         state = self.states.take(rows)
-        previous = np.tile(np.asarray(env.spec.default_pose, dtype=float), (len(rows), 1))
+        default = np.asarray(env.task.default_pose, dtype=float)  # (J,), or (N, J) when the robots' differ
+        previous = np.tile(default, (len(rows), 1)) if default.ndim == 1 else default.copy()
         env.begin_recorded(RecordedStarts(state, previous), params)
 
 

@@ -121,7 +121,8 @@ class StepReward:
     Args:
         config: the reward table; its velocity-limit threshold, if left at the paper's literal 0.8 rad/s, is
             read from ``spec``'s URDF.
-        spec: the robot (joint order, limits, default pose = the standing posture q̊).
+        spec: the robot (joint order, URDF velocity limits); the standing posture q̊ and the joint limits are the
+            task's (each environment's robot's).
         nominal_height: standing base height [m], scalar or (N,).
         ground_height: terrain height [m] (N,) under world points (N, 2) of each environment.
         head: the humanoid's head points (None for robots without a head; unused when the table has no
@@ -131,7 +132,6 @@ class StepReward:
     def __init__(self, config: RewardConfig, spec: RobotSpec, nominal_height, ground_height: Callable,
                  head: HeadPoints | None = None):
         self.config = with_joint_velocity_limits(config, spec.urdf_path, spec.joint_names)
-        self.default_pose = np.asarray(spec.default_pose)
         self.nominal_height = nominal_height
         self.upper_body = upper_body_joints(spec)
         self.ground_height = ground_height
@@ -151,7 +151,7 @@ class StepReward:
 
         inputs = RewardInputs(
             projected_gravity=task.gravity, q=s.q, qd=s.qd, qd_prev=qd_prev, tau=s.tau, action=action,
-            action_prev=action_prev, q_stand=own(self.default_pose), q_lower=own(task.lower),
+            action_prev=action_prev, q_stand=own(task.default_pose), q_lower=own(task.lower),
             q_upper=own(task.upper), foot_contact=c.foot_contact, body_contact=task.signals.body_contact,
             knee_force_xy=c.knee_force_xy, base_xy=s.base_pos[:, :2], init_xy=task.start_xy,
             base_height=task.signals.height, nominal_height=own(self.nominal_height), action_prev2=action_prev2,
