@@ -116,8 +116,11 @@ def next_train_command(args, seed: int, folder: Path) -> list[str] | None:
         fields = [x for item in args.fields for x in ("--set", item)]
         return [*frbench, "train", "--method", args.method, "--preset", args.preset, "--envs", str(args.envs),
                 "--steps", str(budget), "--set", f"seed={seed}", *fields, "--out", str(folder)]
-    if stage_args and not staged and steps >= stage_at:
-        return [*frbench, "train", "--resume", str(folder), "--steps", str(args.steps), *stage_args]
+    if stage_args and not staged and steps >= stage_at:  # the stage's first leg ends at the next subset checkpoint
+        target = args.steps
+        if getattr(args, "subset_every", 0):
+            target = min(args.steps, (steps // args.subset_every + 1) * args.subset_every)
+        return [*frbench, "train", "--resume", str(folder), "--steps", str(target), *stage_args]
     if steps < budget:
         return [*frbench, "train", "--resume", str(folder), "--steps", str(budget)]
     return None
