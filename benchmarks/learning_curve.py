@@ -67,6 +67,11 @@ The ``kickstart-scripted`` recipe (docs/training.md, "Learning from scripted")::
     nice -n 10 python benchmarks/learning_curve.py --preset kickstart-scripted --out runs/kickstart --seeds 0 \
         --steps 24e6 --subset-every 2e6 --jobs 1
     python benchmarks/learning_curve.py --out runs/kickstart --seeds 0 --steps 24e6 --subset-every 2e6 --report
+
+``--unseen-subset`` (with ``--subset-every``) also scores the policy snapshot at each subset checkpoint on
+``unseen-seed0`` (`unseen_subset`: the unseen grid's quadruped cells of evaluation seed 0 in both simulators, 432
+episodes; ``OUT/seed<S>/unseen-<env steps>.json``, kept) and ``scripted`` on the same cells: the unseen-grid
+curve, which the issue's second target (unseen >= 50 %) is read from.
 """
 
 from __future__ import annotations
@@ -84,6 +89,8 @@ MARKS = (0.5e6, 1.0e6, 1.5e6, 2.0e6, 2.5e6, 3.0e6)
 SUBSET_NAME = "standard-seed0"
 SUBSET = {"robots": "go2,go1,aliengo,spot_like,lite3_like", "backends": "mujoco,pybullet",
           "terrains": "flat,rough,slopes,stairs,stones,gaps,beams", "levels": "1,5,10", "seeds": "0", "episodes": "3"}
+#: ``unseen-seed0``: the unseen grid's quadruped cells of evaluation seed 0 (`unseen_subset`).
+UNSEEN_SUBSET_NAME = "unseen-seed0"
 #: The evaluation seeds of the Go2 flat scores (``frbench evaluate --seeds``).
 EVALUATION_SEEDS = (0, 1, 2, 3)
 
@@ -144,11 +151,24 @@ def train_seed(args, seed: int) -> None:
                 return
 
 
-def evaluate_subset(policy: str, result: Path, log=None) -> dict:
-    """``frbench evaluate`` of ``policy`` on `SUBSET`, written to ``result`` (kept when it exists); its results."""
+def unseen_subset() -> dict[str, str]:
+    """``unseen-seed0`` as ``frbench evaluate`` arguments: the nine unseen quadrupeds x both simulators x the unseen
+    grid's families and levels x evaluation seed 0 x 3 episodes (144 cells, 432 episodes, a quarter of the unseen
+    grid's two-simulator part)."""
+    from frbench.tasks import protocol
+
+    return {"robots": ",".join(protocol.unseen_quadrupeds()), "backends": "mujoco,pybullet",
+            "terrains": ",".join(protocol.UNSEEN_TERRAINS), "levels": ",".join(map(str, protocol.UNSEEN_LEVELS)),
+            "seeds": "0", "episodes": str(protocol.UNSEEN_EPISODES)}
+
+
+def evaluate_subset(policy: str, result: Path, log=None, subset: dict | None = None) -> dict:
+    """``frbench evaluate`` of ``policy`` on ``subset`` (default `SUBSET`), written to ``result`` (kept when it
+    exists); its results."""
     if not result.is_file():
+        cells = SUBSET if subset is None else subset
         command = [sys.executable, "-m", "frbench", "evaluate", "--policy", str(policy), "--jobs", "1",
-                   "--out", str(result), *[x for k, v in SUBSET.items() for x in (f"--{k}", v)]]
+                   "--out", str(result), *[x for k, v in cells.items() for x in (f"--{k}", v)]]
         if log is not None:
             log.write("$ " + shlex.join(command) + "\n")
             log.flush()
@@ -241,6 +261,32 @@ def report_subset(out: Path, seeds: list[int], budget: float, stop_at: float) ->
         else:
             verdict = "go on" if half[0] / half[1] > stop_at else "stop"
             print(f"seed {seed}: stop rule at half the budget: {half[0] / half[1]:.3f} vs {stop_at:g}: {verdict}")
+
+
+def report_unseen_subset(out: Path, seeds: list[int]) -> None:
+    """Print each seed's unseen-grid estimate on ``unseen-seed0`` (`unseen_subset`) at its standard-subset
+    checkpoints: the policy snapshot there plays it (``OUT/seed<S>/unseen-<env steps>.json``, kept), beside
+    ``scripted`` on the same cells (``OUT/unseen-scripted.json``)."""
+    from frbench.evaluation.intervals import wilson_interval
+
+    def cell(results: dict) -> str:
+        wins, n = subset_rate(results)
+        low, high = wilson_interval(wins, n)
+        return f"{wins / n:.3f} [{low:.3f}, {high:.3f}] ({wins}/{n})"
+
+    cells = unseen_subset()
+    print(f"unseen-grid estimate on the subset {UNSEEN_SUBSET_NAME} ({', '.join(f'{k} {v}' for k, v in cells.items())})")
+    print(f"scripted: {cell(evaluate_subset('scripted', out / 'unseen-scripted.json', subset=cells))}")
+    for seed in seeds:
+        folder = out / f"seed{seed}"
+        for steps in sorted(subset_results(folder)):
+            snapshot = snapshot_at(folder, steps)
+            if snapshot is None:
+                print(f"seed {seed}  {steps / 1e6:6.2f} M  no snapshot")
+                continue
+            at, policy = snapshot
+            results = evaluate_subset(str(policy), folder / f"unseen-{at}.json", subset=cells)
+            print(f"seed {seed}  {at / 1e6:6.2f} M  {cell(results)}")
 
 
 def train_all(args, seeds: list[int]) -> None:
@@ -400,6 +446,8 @@ def main(argv=None) -> int:
                         help=f"train in chunks of STEPS env steps and score each on the subset {SUBSET_NAME}")
     parser.add_argument("--stop-at", type=float, default=0.35,
                         help="the stop rule: the subset estimate at half the budget must be above this")
+    parser.add_argument("--unseen-subset", action="store_true",
+                        help=f"with --subset-every: also score each subset checkpoint's snapshot on {UNSEEN_SUBSET_NAME}")
     parser.add_argument("--report", action="store_true", help="print the table of the existing runs only")
     parser.add_argument("--marks", default=",".join(f"{m:g}" for m in MARKS),
                         help="env-step marks of the table (comma-separated), the last one the target's")
@@ -419,6 +467,8 @@ def main(argv=None) -> int:
     report(args.out, seeds, args.target, marks)
     if args.subset_every:
         report_subset(args.out, seeds, args.steps, args.stop_at)
+        if args.unseen_subset:
+            report_unseen_subset(args.out, seeds)
     if args.deterministic:
         report_deterministic(args.out, seeds, args.target, args.deterministic)
     robots = args.evaluate_robots.split(",")

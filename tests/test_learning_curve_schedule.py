@@ -63,3 +63,15 @@ def test_a_kept_run_without_its_policy_is_not_scored_again(tmp_path):
     log.close()
     assert "no policy.pt at 8005632 env steps" in (tmp_path / "seed0.log").read_text()
     assert not list(folder.glob("subset-*.json"))
+
+
+def test_the_unseen_subset_is_the_unseen_grids_quadruped_cells_of_seed_0_in_two_simulators():
+    from frbench.tasks import protocol
+
+    cells = load_script().unseen_subset()
+    robots = cells["robots"].split(",")
+    assert set(robots) == set(protocol.unseen_quadrupeds()) and len(robots) == 9
+    assert not set(robots) & set(protocol.STANDARD_ROBOTS)
+    episodes = (len(robots) * len(cells["backends"].split(",")) * len(cells["terrains"].split(","))
+                * len(cells["levels"].split(",")) * len(cells["seeds"].split(",")) * int(cells["episodes"]))
+    assert episodes == 432
