@@ -39,6 +39,25 @@ def test_the_presets_schedule_numbers():
     assert PRESETS["kickstart-scripted"].train_overrides()["algorithm"]["class_name"].endswith(":KickstartPPO")
 
 
+def test_an_imitation_floor_keeps_the_term_and_the_teachers_quarter_on_after_the_decay():
+    cfg = TrainEnvConfig(**{**KICKSTART_SCRIPTED, "imitation_floor": 0.1})
+    s = cfg.imitation_schedule()
+    assert [s.imitation_weight(x) for x in (0, 2e6, 7e6, 11e6, 12e6, 30e6)] == pytest.approx(
+        [1.0, 1.0, 0.5, 0.1, 0.1, 0.1])  # the decay of the preset, stopped at 0.1 (reached at 11 M)
+    after = np.mean([s.acts(20e6, e, 256).mean() for e in range(40)])
+    assert after == pytest.approx(0.25, abs=0.02)  # the teacher's quarter goes on past imitation_until
+    acting = s.acts(20e6, 3, 64)
+    imitation, rl = s.row_weights(20e6, acting)
+    assert np.array_equal(imitation, np.where(acting, 0.1, 0.0)) and np.array_equal(rl, np.where(acting, 0.0, 1.0))
+    unchanged = TrainEnvConfig(**KICKSTART_SCRIPTED).imitation_schedule()
+    assert unchanged.floor == 0.0 and not unchanged.acts(20e6, 3, 64).any()
+    with pytest.raises(ValueError, match="imitation_floor"):
+        TrainEnvConfig(**{**KICKSTART_SCRIPTED, "imitation_floor": 1.5})
+    from frbench.training.config import STAGE_FIELDS
+
+    assert "imitation_floor" in STAGE_FIELDS  # frbench train --resume RUN --set imitation_floor=W: a new stage
+
+
 def test_the_dagger_draw_is_distills_rule_and_bad_values_name_their_field():
     for r, b in ((1, 0), (2, 7)):  # the draw frbench distill made before the rule moved to dagger.py
         expected = np.random.default_rng([3, r, b]).random(50) < 0.3

@@ -147,6 +147,9 @@ class TrainEnvConfig:
     kickstart_beta: float = 0.0
     #: The rows the imitation term weighs: ``"all"`` or only those the ``"teacher"`` acted in.
     imitate_rows: str = "all"
+    #: The weight the imitation term's decay stops at (0: it ends at ``imitation_until``); above 0 the teacher
+    #: also goes on acting in ``kickstart_beta`` of the episodes to the end (`ImitationSchedule.floor`).
+    imitation_floor: float = 0.0
 
     def __post_init__(self) -> None:
         def set_(name: str, value) -> None:
@@ -165,7 +168,8 @@ class TrainEnvConfig:
     def imitation_schedule(self) -> ImitationSchedule:
         """The teacher's timetable (`ImitationSchedule`) from the ``dagger_*`` and ``imitation_*`` fields."""
         return ImitationSchedule(self.dagger_steps, self.dagger_rounds, self.dagger_beta, self.imitation_weight,
-                                 self.imitation_until, self.seed, self.kickstart_beta, self.imitate_rows == "teacher")
+                                 self.imitation_until, self.seed, self.kickstart_beta, self.imitate_rows == "teacher",
+                                 self.imitation_floor)
 
     def robot_kind(self) -> str:
         """``"quadruped"`` (randomised morphologies, or a named quadruped) or ``"humanoid"``."""
@@ -263,7 +267,7 @@ class TrainEnvConfig:
 UNSETTABLE_FIELDS = ("reward", "gain_ranges", "morphology_ranges", "base_controller_parameters")
 #: Fields that ``--set`` may change when a run resumes (``frbench train --resume RUN --set FIELD=VALUE``: a new
 #: stage, recorded in the run's config.json): the robots are redrawn, the policy goes on.
-STAGE_FIELDS = ("bodies",)
+STAGE_FIELDS = ("bodies", "imitation_floor")
 
 
 def field_types() -> dict[str, object]:

@@ -65,6 +65,9 @@ class ImitationSchedule:
         kick_beta: after DAgger and before ``until``, the fraction of episodes the teacher acts in (drawn as a
             round numbered ``dagger_rounds``).
         teacher_rows_only: the imitation term weighs only the rows the teacher acted in.
+        floor: the weight the decay stops at (0: it falls to 0 at ``until`` and the teacher stops acting; above
+            0 the weight stays at ``floor`` from where the decay reaches it, and the teacher goes on acting in a
+            fraction ``kick_beta`` of the episodes to the end of training).
     """
 
     dagger_steps: float = 0.0
@@ -75,6 +78,7 @@ class ImitationSchedule:
     seed: int = 0
     kick_beta: float = 0.0
     teacher_rows_only: bool = False
+    floor: float = 0.0
 
     def __post_init__(self) -> None:
         if self.dagger_steps < 0 or self.until < 0:
@@ -88,6 +92,9 @@ class ImitationSchedule:
             raise ValueError(f"kickstart_beta {self.kick_beta!r}: expected a fraction in [0, 1]")
         if self.weight < 0:
             raise ValueError(f"imitation_weight {self.weight!r}: expected a weight >= 0")
+        if not 0.0 <= self.floor <= self.weight:
+            raise ValueError(f"imitation_floor {self.floor!r}: expected a weight in [0, imitation_weight "
+                             f"{self.weight!r}]")
 
     def round_at(self, env_steps: float) -> int | None:
         """The DAgger round at ``env_steps`` (0-based), None once DAgger is over."""
@@ -97,12 +104,12 @@ class ImitationSchedule:
 
     def imitation_weight(self, env_steps: float) -> float:
         """The imitation term's weight at ``env_steps``: ``weight`` during DAgger, then falling linearly to 0 at
-        ``until``."""
+        ``until``, never below ``floor``."""
         if env_steps < self.dagger_steps:
             return float(self.weight)
         if env_steps >= self.until:
-            return 0.0
-        return float(self.weight * (self.until - env_steps) / (self.until - self.dagger_steps))
+            return float(self.floor)
+        return max(float(self.weight * (self.until - env_steps) / (self.until - self.dagger_steps)), float(self.floor))
 
     def rl_weight(self, env_steps: float) -> float:
         """The PPO surrogate's (and entropy bonus's) weight at ``env_steps``: 0 during DAgger, 1 after."""
@@ -110,11 +117,12 @@ class ImitationSchedule:
 
     def acts(self, env_steps: float, episode: int, n: int) -> np.ndarray:
         """(n,) bool: the environments whose episode number ``episode`` (a batch) starting at ``env_steps`` the
-        teacher acts in (`teacher_acts`; during the decay a fraction ``kick_beta``, none after it)."""
+        teacher acts in (`teacher_acts`; during the decay a fraction ``kick_beta``, none after it unless a
+        ``floor`` keeps the term on)."""
         round_index = self.round_at(env_steps)
         if round_index is not None:
             return teacher_acts(self.seed, round_index, episode, n, self.beta)
-        if env_steps < self.until and self.kick_beta > 0:
+        if (env_steps < self.until or self.floor > 0) and self.kick_beta > 0:
             return teacher_acts(self.seed, self.dagger_rounds, episode, n, self.kick_beta)
         return np.zeros(n, dtype=bool)
 
