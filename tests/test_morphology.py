@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from frbench.robots import morphology as morph
+from frbench.robots import morphology_frame as morph_frame
 from frbench.robots import morphology_urdf as morph_urdf
 from frbench.robots.morphology import MORPHOLOGY_RANGES, MorphologyParams
 from frbench.robots.morphology_presets import LITE3_LIKE, SPOT_LIKE
@@ -184,7 +185,7 @@ def test_nominal_height_matches_pinocchio_kinematics(case):
     model = pin.buildModelFromXML(morph_urdf.urdf_string(p), pin.JointModelFreeFlyer())
     data = model.createData()
     q = pin.neutral(model)  # base at the origin, identity orientation
-    q[7:] = morph.default_pose(p)
+    q[7:] = morph_frame.default_pose(p)
     pin.framesForwardKinematics(model, data, q)
     depths = [-data.oMf[model.getFrameId(f"{leg}_foot")].translation[2] for leg in LEGS]
     assert morph.nominal_height(p) == pytest.approx(min(depths) + p.foot_radius, abs=1e-12)
@@ -207,7 +208,7 @@ def test_joint_sign_conventions():
     assert foot("FL", 0.0, 0.5, 0.0)[0] < straight[0]  # positive thigh: foot backward
     assert foot("FL", 0.0, 0.0, -0.5)[0] > straight[0]  # negative calf: knee folds, foot forward
     assert foot("FL", 0.3, 0.0, 0.0)[1] > straight[1]  # positive hip on the left: outward
-    pose = morph.default_pose(p)
+    pose = morph_frame.default_pose(p)
     assert pose[0] == -pose[3] == 0.1  # stand_hip mirrored on the right legs
     assert foot("FR", pose[3], 0.0, 0.0)[1] < foot("FR", 0.0, 0.0, 0.0)[1]  # outward on the right too
 
@@ -262,8 +263,8 @@ def test_preset_kinematics():
     assert SPOT_LIKE.hip_length == 0.1108 and SPOT_LIKE.calf_torque == 113.2
     assert morph.hip_position(LITE3_LIKE) == (0.1745, 0.062)
     assert LITE3_LIKE.hip_length == 0.09735
-    assert morph.default_pose(SPOT_LIKE)[:6] == (0.0, 0.9, -1.5, 0.0, 0.9, -1.5)
-    assert morph.default_pose(SPOT_LIKE)[6:9] == (0.0, 1.1, -1.5)
+    assert morph_frame.default_pose(SPOT_LIKE)[:6] == (0.0, 0.9, -1.5, 0.0, 0.9, -1.5)
+    assert morph_frame.default_pose(SPOT_LIKE)[6:9] == (0.0, 1.1, -1.5)
 
 
 @pytest.mark.parametrize("case", sorted(CASES))

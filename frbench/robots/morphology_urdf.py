@@ -21,16 +21,12 @@ from frbench.robots.morphology import (
     JOINT_NAMES,
     Inertia3,
     MorphologyParams,
-    default_pose,
     hip_position,
-    is_go2_convention,
-    joint_limits,
-    knee_mirror,
-    leg_signs,
     nominal_height,
     total_mass,
     validate,
 )
+from frbench.robots.morphology_frame import default_pose, is_go2_convention, joint_limits, knee_mirror, leg_signs
 from frbench.robots.spec import QUADRUPED_LEGS, RobotSpec, quadruped_groups
 
 
