@@ -275,6 +275,9 @@ def test_the_wide_preset_is_kickstart_scripted_on_wide_bodies_and_kickstart_scri
     wide = PRESETS["kickstart-scripted-wide"]
     assert dict(wide.env) == {**KICKSTART_SCRIPTED, "bodies": "wide"}
     assert wide.train_overrides() == PRESETS["kickstart-scripted"].train_overrides()
+    floor = PRESETS["kickstart-scripted-wide-floor"]
+    assert dict(floor.env) == {**KICKSTART_SCRIPTED, "bodies": "wide", "imitation_floor": 0.1}
+    assert floor.train_overrides() == wide.train_overrides()
     assert set(BODIES) == {"paper", "wide"} and BODIES["paper"] is None
 
 

@@ -144,6 +144,11 @@ PRESETS: Mapping[str, Preset] = MappingProxyType({
                     "pair, flipped joint axes and legs folded at joint zero (bodies=wide; training.bodies, "
                     "docs/training.md)",
         env=MappingProxyType({**KICKSTART_SCRIPTED, "bodies": "wide"})),
+    "kickstart-scripted-wide-floor": replace(
+        _KICKSTART_SCRIPTED,
+        description="kickstart-scripted-wide whose imitation weight stops at 0.1 instead of 0: the teacher goes on "
+                    "acting in its quarter of the episodes to the end (imitation_floor=0.1; docs/training.md)",
+        env=MappingProxyType({**KICKSTART_SCRIPTED, "bodies": "wide", "imitation_floor": 0.1})),
     "no-stability": Preset(
         "demo-starts without the stability reward terms (the frnet-no-stability ablation)",
         env=_DEMO_STARTS, drop_terms=STABILITY_TERMS),
