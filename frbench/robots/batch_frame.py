@@ -4,7 +4,8 @@ A training batch whose robots share one canonical frame maps every environment t
 returns that `JointFrame`). Robots of different file conventions (``bodies="wide"``: knees forward, flipped axes,
 legs folded at zero) each have their own; `BatchJointFrame` maps environment i through the frame of its robot,
 with the `JointFrame` interface the training env uses (`observation`, `targets`, `to_canonical`, `to_joints`,
-`velocities`, `body_vectors`, `canonical_spec`), on numpy arrays or torch tensors (N rows).
+`velocities`, `body_vectors`, `canonical_spec`), on numpy arrays or torch tensors (N rows): the same maths
+(`frbench.robots.joint_frame.CanonicalMaps`) on per-environment rows.
 
 Their canonical standing poses must agree, the learner's one q̊ (a wide body's is its paper draw's Go2 pose).
 Shapes: N environments, J joints.
@@ -16,82 +17,32 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from frbench.arrays import is_host, namespace, resident
-from frbench.robots.joint_frame import JointFrame, JointFrameError, canonical_observation, joint_frame
+from frbench.robots.joint_frame import CanonicalMaps, JointFrame, JointFrameError, joint_frame
 
 #: Canonical standing poses [rad] of one batch differ by at most this.
 POSE_TOLERANCE = 1e-9
 
 
 @dataclass(frozen=True)
-class BatchJointFrame:
+class BatchJointFrame(CanonicalMaps):
     """Environment i read and written through ``frames[assignment[i]]`` (module docstring).
 
     Attributes:
         frames: the batch's robots' `JointFrame` (K).
         assignment: (N,) each environment's index into ``frames``.
+        turned: (N,) bool, set from them: environment i's robot is turned around (its canonical front is its rear).
     """
 
     frames: tuple[JointFrame, ...]
     assignment: tuple[int, ...]
 
     def __post_init__(self) -> None:
-        rows = np.asarray(self.assignment, dtype=np.int64)
-        frames = [self.frames[k] for k in rows]
-        object.__setattr__(self, "_sign", np.array([f.sign for f in frames], dtype=float))
-        object.__setattr__(self, "_offset", np.array([f.offset for f in frames], dtype=float))
-        object.__setattr__(self, "_order", np.array([f.order for f in frames], dtype=np.int64))
-        object.__setattr__(self, "_turned", np.array([f.turned for f in frames], dtype=bool))
-
-    is_identity = False
-
-    @property
-    def turned(self) -> np.ndarray:
-        """(N,) bool: environment i's robot is turned around (its canonical front is its rear)."""
-        return self._turned
-
-    def _arrays(self, like):
-        """sign (N, J), offset (N, J), order (N, J) in ``like``'s namespace and device."""
-        if is_host(like):
-            return self._sign, self._offset, self._order
-        return (resident(self._sign, like), resident(self._offset, like),
-                resident(self._order, like, namespace(like).int64))
-
-    def _reorder(self, values, order):
-        """(N, J) values in the other joint order (each row's order is its own inverse)."""
-        if is_host(values):
-            return np.take_along_axis(np.asarray(values), order, axis=-1)
-        return values.gather(-1, order)
-
-    def to_canonical(self, q):
-        """Robot joint angles [rad] (N, J) as canonical leg angles."""
-        sign, offset, order = self._arrays(q)
-        return sign * self._reorder(q, order) + offset
-
-    def to_joints(self, canonical):
-        """Canonical leg angles [rad] (N, J) as each robot's joint angles (inverse of `to_canonical`)."""
-        sign, offset, order = self._arrays(canonical)
-        return self._reorder(sign * (canonical - offset), order)
-
-    def velocities(self, qd):
-        """Joint velocities [rad/s] (N, J), robot → canonical."""
-        sign, _, order = self._arrays(qd)
-        return sign * self._reorder(qd, order)
-
-    def body_vectors(self, v):
-        """Body-frame vectors (N, 3) in the canonical body frame: x and y negated on the turned rows."""
-        if not self._turned.any():
-            return v
-        flip = np.where(self._turned[:, None], np.array([-1.0, -1.0, 1.0]), 1.0)
-        return v * (flip if is_host(v) else resident(flip, v))
-
-    def observation(self, obs: dict) -> dict:
-        """The proprioception dict in the canonical frame (`JointFrame.observation`, row by row)."""
-        return canonical_observation(self, obs)
-
-    def targets(self, canonical):
-        """Joint targets (N, J) [rad] from a canonical-frame policy as each robot's (numpy float64 or torch)."""
-        return self.to_joints(np.asarray(canonical, dtype=np.float64) if is_host(canonical) else canonical)
+        frames = [self.frames[k] for k in self.assignment]
+        turned = np.array([f.turned for f in frames], dtype=bool)
+        object.__setattr__(self, "turned", turned)
+        self._set_rows([f.sign for f in frames], [f.offset for f in frames],
+                       [f.order for f in frames] if turned.any() else None,
+                       np.where(turned[:, None], np.array([-1.0, -1.0, 1.0]), 1.0) if turned.any() else None)
 
     def canonical_spec(self, spec):
         """``spec`` (the batch's first robot) as a canonical-frame policy sees it (`JointFrame.canonical_spec` of

@@ -45,6 +45,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from frbench.arrays import is_host, namespace, resident
 from frbench.errors import FrbenchError
 from frbench.robots.kinematics import link_poses
 from frbench.robots.sim_urdf import sim_robot_file
@@ -66,11 +67,6 @@ class JointFrameError(FrbenchError):
     """The robot has no canonical joint frame (not a quadruped, or a leg that is not hip-thigh-calf)."""
 
 
-def _is_numpy_input(values) -> bool:
-    """Whether ``values`` is a numpy array, a scalar or a sequence (not a torch tensor)."""
-    return isinstance(values, (np.ndarray, np.generic, float, int, list, tuple))
-
-
 def _sagittal_angle(v: np.ndarray) -> float:
     """Angle [rad] of ``v`` from straight down in the body's x-z plane, positive towards -x (backwards)."""
     return float(np.arctan2(-v[0], -v[2]))
@@ -81,8 +77,72 @@ def _wrap(angle: float) -> float:
     return float((angle + np.pi) % (2.0 * np.pi) - np.pi)
 
 
+class CanonicalMaps:
+    """The maths of a canonical joint frame, ``canonical = sign · q[order] + offset``, one implementation for one
+    robot (`JointFrame`: sign, offset and order of shape (J,), broadcast over any leading axes) and for a batch of
+    robots (`frbench.robots.batch_frame.BatchJointFrame`: (N, J), environment i through its robot's row), on numpy
+    arrays or torch tensors. A frame sets its host rows once (`_set_rows`); a torch input reads them as
+    device-resident copies (`frbench.arrays.resident`)."""
+
+    is_identity = False
+
+    def _set_rows(self, sign, offset, order, flip) -> None:
+        """The frame's host rows: ``sign`` and ``offset`` (..., J), ``order`` (..., J) (None: the joints keep
+        their order) and ``flip`` (..., 3), the body-vector factors (None: no body vector changes)."""
+        object.__setattr__(self, "_rows", (np.asarray(sign, dtype=float), np.asarray(offset, dtype=float),
+                                           None if order is None else np.asarray(order, dtype=np.int64),
+                                           None if flip is None else np.asarray(flip, dtype=float)))
+
+    def _row(self, k: int, like):
+        """Row ``k`` of (sign, offset, order, flip) in ``like``'s namespace, device and dtype (the order int64)."""
+        value = self._rows[k]
+        if value is None or is_host(like):
+            return value
+        return resident(value, like, namespace(like).int64 if k == 2 else None)
+
+    def _reorder(self, values):
+        """(..., J) values in the other joint order (robot ↔ canonical: each row's order is its own inverse)."""
+        order = self._row(2, values)
+        if order is None:
+            return values
+        if is_host(values):
+            values = np.asarray(values)
+            return np.take_along_axis(values, np.broadcast_to(order, values.shape), axis=-1)
+        return values.gather(-1, order.expand(values.shape))
+
+    def to_canonical(self, q):
+        """Robot joint angles [rad] (..., J) as canonical leg angles (numpy or torch)."""
+        return self._row(0, q) * self._reorder(q) + self._row(1, q)
+
+    def to_joints(self, canonical):
+        """Canonical leg angles [rad] (..., J) as the robot's joint angles (inverse of `to_canonical`)."""
+        return self._reorder(self._row(0, canonical) * (canonical - self._row(1, canonical)))
+
+    def velocities(self, qd):
+        """Joint velocities [rad/s] (..., J), robot → canonical: sign · q̇ in canonical order."""
+        return self._row(0, qd) * self._reorder(qd)
+
+    def body_vectors(self, v):
+        """Body-frame vectors (..., 3) (angular velocity, gravity direction) in the canonical body frame: x and y
+        negated for a turned robot, unchanged otherwise."""
+        flip = self._row(3, v)
+        return v if flip is None else v * flip
+
+    def observation(self, obs: dict) -> dict:
+        """The proprioception dict (`frbench.tasks.observations`) in the canonical frame (`canonical_observation`);
+        the identity frame returns ``obs`` itself."""
+        return obs if self.is_identity else canonical_observation(self, obs)
+
+    def targets(self, canonical):
+        """Joint targets from a policy in the canonical frame, (N, J) [rad] (numpy, as float64, or torch on its
+        device), as the robot's targets; the identity frame returns them unchanged."""
+        if self.is_identity:
+            return canonical
+        return self.to_joints(np.asarray(canonical, dtype=np.float64) if is_host(canonical) else canonical)
+
+
 @dataclass(frozen=True)
-class JointFrame:
+class JointFrame(CanonicalMaps):
     """A robot's map onto canonical leg angles: ``canonical = sign · q + offset`` per joint.
 
     Attributes:
@@ -100,6 +160,10 @@ class JointFrame:
     knees: tuple[str, ...]
     turned: bool = False
 
+    def __post_init__(self) -> None:
+        self._set_rows(self.sign, self.offset, self.order if self.turned else None,
+                       (-1.0, -1.0, 1.0) if self.turned else None)
+
     @property
     def order(self) -> tuple[int, ...]:
         """The robot's joint index of each canonical joint (n_joints,): FL ↔ RR and FR ↔ RL for a turned robot."""
@@ -110,52 +174,6 @@ class JointFrame:
     def is_identity(self) -> bool:
         """True when the robot's convention already is the canonical one (every sign +1, every offset 0)."""
         return not self.turned and all(s == 1.0 for s in self.sign) and not any(self.offset)
-
-    def _arrays(self, like):
-        """sign and offset as arrays in ``like``'s namespace and dtype (numpy, or torch on its device)."""
-        if isinstance(like, np.ndarray) or np.isscalar(like):
-            return np.asarray(self.sign), np.asarray(self.offset)
-        return (like.new_tensor(self.sign), like.new_tensor(self.offset))
-
-    def _reorder(self, values):
-        """(..., n_joints) values in the other joint order (robot ↔ canonical: the order is its own inverse)."""
-        return values[..., list(self.order)] if self.turned else values
-
-    def to_canonical(self, q):
-        """Robot joint angles [rad] (..., n_joints) as canonical leg angles (numpy or torch)."""
-        sign, offset = self._arrays(q)
-        return sign * self._reorder(q) + offset
-
-    def to_joints(self, canonical):
-        """Canonical leg angles [rad] (..., n_joints) as the robot's joint angles (inverse of `to_canonical`)."""
-        sign, offset = self._arrays(canonical)
-        return self._reorder(sign * (canonical - offset))
-
-    def velocities(self, qd):
-        """Joint velocities [rad/s] (..., n_joints), robot → canonical: sign · q̇ in canonical order."""
-        sign, _ = self._arrays(qd)
-        return sign * self._reorder(qd)
-
-    def body_vectors(self, v):
-        """Body-frame vectors (..., 3) (angular velocity, gravity direction) in the canonical body frame: x and y
-        negated for a turned robot, unchanged otherwise."""
-        if not self.turned:
-            return v
-        flip = np.array([-1.0, -1.0, 1.0]) if isinstance(v, np.ndarray) else v.new_tensor([-1.0, -1.0, 1.0])
-        return v * flip
-
-    def observation(self, obs: dict) -> dict:
-        """The proprioception dict (`frbench.tasks.observations`) in the canonical frame: ``joint_pos`` and
-        ``previous_action`` (targets [rad]) through `to_canonical`, ``joint_vel`` through `velocities`,
-        ``base_angvel`` and ``projected_gravity`` through `body_vectors`. The identity frame returns ``obs`` itself."""
-        return obs if self.is_identity else canonical_observation(self, obs)
-
-    def targets(self, canonical):
-        """Joint targets from a policy in the canonical frame, (N, n_joints) [rad] (numpy, as float64, or torch on
-        its device), as the robot's targets; the identity frame returns them unchanged."""
-        if self.is_identity:
-            return canonical
-        return self.to_joints(np.asarray(canonical, dtype=np.float64) if _is_numpy_input(canonical) else canonical)
 
     def canonical_spec(self, spec: RobotSpec) -> RobotSpec:
         """``spec`` as a canonical-frame policy sees it: default pose and joint limits in canonical leg angles
