@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from frbench.robots.joint_frame import CanonicalMaps, JointFrame, JointFrameError, joint_frame
+from frbench.robots.joint_frame import TURNED_BODY_FLIP, CanonicalMaps, JointFrame, JointFrameError, joint_frame
 
 #: Canonical standing poses [rad] of one batch differ by at most this.
 POSE_TOLERANCE = 1e-9
@@ -42,7 +42,7 @@ class BatchJointFrame(CanonicalMaps):
         object.__setattr__(self, "turned", turned)
         self._set_rows([f.sign for f in frames], [f.offset for f in frames],
                        [f.order for f in frames] if turned.any() else None,
-                       np.where(turned[:, None], np.array([-1.0, -1.0, 1.0]), 1.0) if turned.any() else None)
+                       np.where(turned[:, None], np.array(TURNED_BODY_FLIP), 1.0) if turned.any() else None)
 
     def canonical_spec(self, spec):
         """``spec`` (the batch's first robot) as a canonical-frame policy sees it (`JointFrame.canonical_spec` of

@@ -59,6 +59,8 @@ AXIS_ALIGNMENT = 0.9
 #: Why a humanoid has no canonical frame (``frbench spec`` prints it).
 HUMANOID_REASON = ("a humanoid's legs are hip pitch/roll/yaw-knee-ankle chains, which the canonical "
                    "hip-thigh-calf leg convention does not describe: humanoid policies use the robot's own joint frame")
+#: Factors of a body-frame vector (x, y, z) of a turned robot in the canonical body frame: x and y negated.
+TURNED_BODY_FLIP = (-1.0, -1.0, 1.0)
 #: The values of a policy's ``joint_frame``: ``robot`` (the robot file's own convention) or ``canonical``.
 JOINT_FRAMES = ("robot", "canonical")
 
@@ -162,7 +164,7 @@ class JointFrame(CanonicalMaps):
 
     def __post_init__(self) -> None:
         self._set_rows(self.sign, self.offset, self.order if self.turned else None,
-                       (-1.0, -1.0, 1.0) if self.turned else None)
+                       TURNED_BODY_FLIP if self.turned else None)
 
     @property
     def order(self) -> tuple[int, ...]:
