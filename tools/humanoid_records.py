@@ -19,6 +19,10 @@ last, or alone with ``--only mpc``::
     .venv/bin/python tools/humanoid_records.py --protocol 1.3 --status
     .venv/bin/python tools/humanoid_records.py --protocol 1.3 --submit
 
+Several processes of one job share its chunks: each claims the chunk it runs (``.<chunk file>.claim`` with its
+process id, `rescore.claim_chunk`) and passes over those another live process holds, so the same command started
+once per free core runs that many chunks at a time; a claim whose process has gone is taken over.
+
 ``--adopt EARLIER`` (e.g. ``runs/humanoid-1.3``) takes each pending chunk that a job of an earlier protocol wrote
 under ``EARLIER/<policy>/chunks/`` when every start of its episodes (the first draw and each screening redraw an
 episode used) is drawn the same under both protocols (`rescore_starts.StartDraws`): nothing else of a cell reads
@@ -149,18 +153,26 @@ def run(jobs: list[HumanoidJob], out: Path, max_chunks: int = 0) -> int:
     results when its chunks are complete."""
     rescore.log(out, f"start: {', '.join(j.name for j in jobs)} on the humanoid grid of protocol "
              f"{jobs[0].version if jobs else '-'}, pid {os.getpid()}")
-    ran = 0
+    ran = elsewhere = 0
     for job in jobs:
         job.meta()
         for chunk in job.pending(GRID):
             if max_chunks and ran >= max_chunks:
                 rescore.log(out, f"stop after {ran} chunks (--max-chunks)")
                 return 0
-            rescore.run_logged_chunk(job, GRID, chunk)
+            claim = rescore.claim_chunk(rescore.chunk_path(job.out, job.name, GRID, *chunk[:3]))
+            if claim is None:  # written meanwhile, or another process of the job runs it
+                elsewhere += 1
+                continue
+            try:
+                rescore.run_logged_chunk(job, GRID, chunk)
+            finally:
+                claim.unlink(missing_ok=True)
             ran += 1
         if job.assemble_humanoid() is not None:
             rescore.log(out, f"{job.name}: results.json complete")
-    rescore.log(out, "finished: every chunk is done")
+    rescore.log(out, "finished: every chunk is done" if not elsewhere else
+                f"finished here: {elsewhere} chunks were another process' (claimed or written meanwhile)")
     return 0
 
 

@@ -89,6 +89,47 @@ def chunk_path(out: Path, name: str, grid: str, robot: str, backend: str, terrai
     return out / name / "chunks" / f"{grid}-{robot}-{backend}-{terrain}.json"
 
 
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` runs on this machine."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def claim_chunk(path: Path) -> Path | None:
+    """Claim the chunk whose file is ``path`` for this process, so that several job processes on one machine
+    share the chunks (each runs the chunks nobody else claimed): the claim file ``.<file name>.claim`` beside it,
+    created exclusively with this process' id. Returns the claim to release, or None when the chunk is written
+    or another live process holds it. A claim left by a process that no longer runs is taken over."""
+    claim = path.with_name(f".{path.name}.claim")
+    claim.parent.mkdir(parents=True, exist_ok=True)
+    for _ in range(2):
+        if path.is_file():
+            return None
+        try:
+            handle = os.open(claim, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+        except FileExistsError:
+            try:
+                holder = int(claim.read_text() or 0)
+            except (OSError, ValueError):
+                holder = 0
+            if holder and _alive(holder):
+                return None
+            claim.unlink(missing_ok=True)  # stale: its process is gone
+            continue
+        with os.fdopen(handle, "w") as stream:
+            stream.write(str(os.getpid()))
+        if path.is_file():  # written between the check and the claim
+            claim.unlink(missing_ok=True)
+            return None
+        return claim
+    return None
+
+
 class Job:
     """One record's re-score: its request (grid standard,unseen) and the chunk files."""
 
