@@ -28,7 +28,9 @@ evaluation's episode runner (``run_episodes``) and prints its successes and peak
 about 2 min per iCub or Talos episode on 2 cores; the policy takes its settings from ``$FRBENCH_MPC``), with,
 per episode, the fraction of (control step, joint) pairs whose applied torque is at its limit (≥ 98 %; all joints,
 and the first 12, the legs), the root's height over the nominal height (the highest, the 10-90 % range from 1 s
-on, the last) and the displacement from the start at the end.
+on, the last) and the displacement from the start at the end; ``--trace S`` adds, every S seconds of each
+episode, what the success test reads (root height over nominal, root and torso tilt, non-foot contact,
+displacement).
 
 Run: ``python benchmarks/humanoid_contact_probe.py`` (under a minute; ``--planner`` adds about 15 s);
 ``--robots icub --episodes 8``; ``--planner --redraws 2000``; ``--robots icub,talos --redraws 2000 --policy mpc``.
@@ -180,7 +182,24 @@ def planning_check(spec, terrain, state: RobotState, config: PlannerConfig) -> d
             "mean |dq| [rad]": round(float(dq), 3), "mean |dz| root [m]": round(float(dz), 3)}
 
 
-def probe(name: str, episodes: int, draws: int, planner: bool, policy: str | None, settings: str = "") -> None:
+def tilt_deg(gravity_z) -> np.ndarray:
+    """Tilt from vertical [deg] of a frame whose projected gravity z is ``gravity_z`` (−1 upright)."""
+    return np.degrees(np.arccos(np.clip(-np.asarray(gravity_z, dtype=float), -1.0, 1.0)))
+
+
+def print_trace(trace: dict, e: int, every: int) -> None:
+    """Episode ``e``'s success-test signals every ``every`` control steps: root height over nominal, root and torso
+    tilt [deg], whether a non-foot link touches anything, displacement [m]."""
+    print("        t [s]  height/nominal  root tilt  torso tilt  body contact  displacement")
+    for k in range(every - 1, len(trace["height"]), every):
+        torso = trace["torso_tilt"][k]
+        print(f"        {(k + 1) * CONTROL_DT:5.2f}  {trace['height'][k][e]:14.2f}  {trace['root_tilt'][k][e]:9.0f}  "
+              f"{'-' if torso is None else f'{torso[e]:.0f}':>10}  {bool(trace['body_contact'][k][e])!s:>12}  "
+              f"{trace['displacement'][k][e]:12.2f}")
+
+
+def probe(name: str, episodes: int, draws: int, planner: bool, policy: str | None, settings: str = "",
+          trace_every: int = 0) -> None:
     spec = get_robot(name)
     terrain = make_terrain("flat", 1, 0)
     replay = Replay(spec, terrain)
@@ -224,12 +243,18 @@ def probe(name: str, episodes: int, draws: int, planner: bool, policy: str | Non
         from frbench.evaluation.episodes import run_episodes
         from frbench.policies.registry import load_policy
 
-        limits, trace = np.asarray(spec.torque_limits), {"saturated": [], "height": [], "displacement": []}
+        limits = np.asarray(spec.torque_limits)
+        trace = {"saturated": [], "height": [], "displacement": [], "root_tilt": [], "torso_tilt": [],
+                 "body_contact": []}
 
         def record(task, targets):
+            signals = task.signals
             trace["saturated"].append(np.abs(task.state.tau) >= 0.98 * limits)
-            trace["height"].append(np.asarray(task.signals.height) / spec.nominal_height)
-            trace["displacement"].append(np.asarray(task.signals.displacement))
+            trace["height"].append(np.asarray(signals.height) / spec.nominal_height)
+            trace["displacement"].append(np.asarray(signals.displacement))
+            trace["root_tilt"].append(tilt_deg(signals.gravity_z))
+            trace["torso_tilt"].append(None if signals.torso_gravity_z is None else tilt_deg(signals.torso_gravity_z))
+            trace["body_contact"].append(np.asarray(signals.body_contact))
 
         task = run_episodes(spec, "mujoco", terrain, screened_starts(spec, terrain, episodes), load_policy(policy),
                             on_step=record)
@@ -242,6 +267,8 @@ def probe(name: str, episodes: int, draws: int, planner: bool, policy: str | Non
                   f"(legs {saturated[:, e, :12].mean():.3f}); root height / nominal: max {height[:, e].max():.2f}, "
                   f"at 1-5 s {np.percentile(height[50:, e], 10):.2f}-{np.percentile(height[50:, e], 90):.2f} (10-90 %), "
                   f"end {height[-1, e]:.2f}; displacement at the end {away[-1, e]:.2f} m")
+            if trace_every:
+                print_trace(trace, e, trace_every)
 
 
 def main() -> None:
@@ -253,11 +280,14 @@ def main() -> None:
     parser.add_argument("--planner", action="store_true", help="compare the planning model at planning_dt with the robot's own step at t = 0")
     parser.add_argument("--policy", default=None, help="also run this policy on the episodes (e.g. mpc)")
     parser.add_argument("--settings", default="", help="planner settings for --planner, as $FRBENCH_MPC (field=value,...)")
+    parser.add_argument("--trace", type=float, default=0.0,
+                        help="with --policy: print each episode's success-test signals every this many seconds")
     args = parser.parse_args()
     if args.redraws is not None:
         initial_states.MAX_REDRAWS = args.redraws
     for name in args.robots.split(","):
-        probe(name, args.episodes, args.draws, args.planner, args.policy, args.settings)
+        probe(name, args.episodes, args.draws, args.planner, args.policy, args.settings,
+              int(round(args.trace / CONTROL_DT)))
 
 
 if __name__ == "__main__":
