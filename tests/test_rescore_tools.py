@@ -36,6 +36,7 @@ def test_a_chunk_is_claimed_once_while_its_claimer_lives_and_never_once_written(
     claim = claim_chunk(chunk)
     assert claim == chunk.with_name(".humanoid-icub-mujoco-flat.json.claim")
     assert claim.read_text() == str(os.getpid())
+    assert [f.name for f in chunk.parent.iterdir()] == [claim.name]  # the pid file written aside is gone
     assert claim_chunk(chunk) is None  # held by a live process (this one)
     claim.unlink()
     chunk.write_text("{}")

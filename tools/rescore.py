@@ -103,31 +103,35 @@ def _alive(pid: int) -> bool:
 def claim_chunk(path: Path) -> Path | None:
     """Claim the chunk whose file is ``path`` for this process, so that several job processes on one machine
     share the chunks (each runs the chunks nobody else claimed): the claim file ``.<file name>.claim`` beside it,
-    created exclusively with this process' id. Returns the claim to release, or None when the chunk is written
-    or another live process holds it. A claim left by a process that no longer runs is taken over."""
+    holding this process' id from the instant it exists (written aside, then hard-linked into place, which fails
+    when the claim exists). Returns the claim to release, or None when the chunk is written or another live
+    process holds it. A claim left by a process that no longer runs is taken over."""
     claim = path.with_name(f".{path.name}.claim")
     claim.parent.mkdir(parents=True, exist_ok=True)
-    for _ in range(2):
-        if path.is_file():
-            return None
-        try:
-            handle = os.open(claim, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
-        except FileExistsError:
-            try:
-                holder = int(claim.read_text() or 0)
-            except (OSError, ValueError):
-                holder = 0
-            if holder and _alive(holder):
+    mine = claim.with_name(f"{claim.name}.{os.getpid()}")
+    mine.write_text(str(os.getpid()))
+    try:
+        for _ in range(2):
+            if path.is_file():
                 return None
-            claim.unlink(missing_ok=True)  # stale: its process is gone
-            continue
-        with os.fdopen(handle, "w") as stream:
-            stream.write(str(os.getpid()))
-        if path.is_file():  # written between the check and the claim
-            claim.unlink(missing_ok=True)
-            return None
-        return claim
-    return None
+            try:
+                os.link(mine, claim)
+            except FileExistsError:
+                try:
+                    holder = int(claim.read_text())
+                except (OSError, ValueError):
+                    holder = 0
+                if holder and _alive(holder):
+                    return None
+                claim.unlink(missing_ok=True)  # stale: its process is gone
+                continue
+            if path.is_file():  # written between the check and the claim
+                claim.unlink(missing_ok=True)
+                return None
+            return claim
+        return None
+    finally:
+        mine.unlink(missing_ok=True)
 
 
 class Job:
