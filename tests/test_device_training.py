@@ -282,13 +282,9 @@ def test_a_bundle_rebuilds_the_env_the_cpu_builds_and_episodes_begin_at_bank_sta
 
 
 def test_the_gpu_run_trains_from_a_bundle_of_its_own_flags():
-    import importlib.util
+    from tests.scripts import load_script
 
-    path = ROOT / "tools" / "gpu_run" / "make_bundle.py"
-    spec = importlib.util.spec_from_file_location("make_bundle", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    cfg = module.training_config()
+    cfg = load_script("tools/gpu_run/make_bundle.py", "make_bundle").training_config()
     assert (cfg.backend, cfg.num_envs, cfg.start_bank) == ("mujoco-warp", 4096, 8)
 
 

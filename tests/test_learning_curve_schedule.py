@@ -3,18 +3,13 @@
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import json
 from pathlib import Path
 
-SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "learning_curve.py"
-
+from tests.scripts import load_script as load
 
 def load_script():
-    spec = importlib.util.spec_from_file_location("learning_curve_script", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load("benchmarks/learning_curve.py", "learning_curve_script")
 
 
 def run_folder(tmp_path: Path, env_steps: int, stages: list[str] = ()) -> Path:

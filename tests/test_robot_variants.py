@@ -2,21 +2,16 @@
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 
 import pytest
 
 from frbench.evaluation.runner import Cell, run_cell
-
-SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "robot_variants.py"
+from tests.scripts import load_script as load
 
 
 def load_script():
-    spec = importlib.util.spec_from_file_location("robot_variants_script", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load("benchmarks/robot_variants.py", "robot_variants_script")
 
 
 def test_a_variant_is_parsed_into_fields_and_numbers():
