@@ -20,7 +20,7 @@ last, or alone with ``--only mpc``::
     .venv/bin/python tools/humanoid_records.py --protocol 1.3 --submit
 
 Several processes of one job share its chunks: each claims the chunk it runs (``.<chunk file>.claim`` with its
-process id, `rescore.claim_chunk`) and passes over those another live process holds, so the same command started
+process id, `rescore.claim_chunk`, as every chunked job of `rescore` does) and passes over those another live process holds, so the same command started
 once per free core runs that many chunks at a time; a claim whose process has gone is taken over.
 
 ``--adopt EARLIER`` (e.g. ``runs/humanoid-1.3``) takes each pending chunk that a job of an earlier protocol wrote
@@ -160,14 +160,9 @@ def run(jobs: list[HumanoidJob], out: Path, max_chunks: int = 0) -> int:
             if max_chunks and ran >= max_chunks:
                 rescore.log(out, f"stop after {ran} chunks (--max-chunks)")
                 return 0
-            claim = rescore.claim_chunk(rescore.chunk_path(job.out, job.name, GRID, *chunk[:3]))
-            if claim is None:  # written meanwhile, or another process of the job runs it
+            if rescore.run_logged_chunk(job, GRID, chunk) is None:  # another process of the job runs it
                 elsewhere += 1
                 continue
-            try:
-                rescore.run_logged_chunk(job, GRID, chunk)
-            finally:
-                claim.unlink(missing_ok=True)
             ran += 1
         if job.assemble_humanoid() is not None:
             rescore.log(out, f"{job.name}: results.json complete")

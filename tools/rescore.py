@@ -9,8 +9,10 @@ standard grids. Every finished chunk is written atomically to::
 
     OUT/<record name>/chunks/<grid>-<robot>-<backend>-<terrain>.json    (its episodes)
 
-and a killed job resumes where it stopped: a chunk whose file exists is not run again. When a record's grid is
-complete its results file is assembled (``frbench evaluate``'s document, validated like a submission)::
+and a killed job resumes where it stopped: a chunk whose file exists is not run again (processes of one job share
+its chunks: each claims the chunk it runs, `claim_chunk`, so the command started once per free core runs that many
+at a time). When a record's grid is complete its results file is assembled (``frbench evaluate``'s document,
+validated like a submission)::
 
     OUT/<record name>/unseen.json       (grid unseen)
     OUT/<record name>/results.json      (grid standard,unseen: what ``frbench submit`` takes)
@@ -240,9 +242,17 @@ def write_reusing_results(job: Job, target: Path, request, fresh: list[dict], ba
     return target
 
 
-def run_logged_chunk(job: Job, grid: str, chunk: tuple) -> float:
-    """Run one chunk of ``job`` and log it (record, grid, robot, backend, terrain, cells, successes, seconds)."""
-    took = job.run_chunk(grid, chunk)
+def run_logged_chunk(job: Job, grid: str, chunk: tuple) -> float | None:
+    """Run one chunk of ``job`` under its claim (`claim_chunk`) and log it (record, grid, robot, backend, terrain,
+    cells, successes, seconds); its seconds, or None when another process of the job holds it or wrote it."""
+    path = chunk_path(job.out, job.name, grid, *chunk[:3])
+    claim = claim_chunk(path)
+    if claim is None:
+        return None
+    try:
+        took = job.run_chunk(grid, chunk)
+    finally:
+        claim.unlink(missing_ok=True)
     successes = sum(e["success"] for e in json.loads(
         chunk_path(job.out, job.name, grid, *chunk[:3]).read_text())["episodes"])
     log(job.out, f"{job.name} {grid} {chunk[0]} {chunk[1]} {chunk[2]}: {len(chunk[3])} cells, {successes} successes, "
@@ -377,6 +387,8 @@ def main(argv: list[str] | None = None) -> int:
                     log(args.out, f"stop after {ran} chunks (--max-chunks)")
                     return 0
                 took = run_logged_chunk(job, grid, chunk)
+                if took is None:  # another process of the job runs it
+                    continue
                 ran += 1
                 seconds[job.name] = seconds.get(job.name, 0.0) + took
                 write_status(args.out, jobs, seconds)

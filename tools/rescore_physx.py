@@ -148,8 +148,8 @@ def main(argv: list[str] | None = None) -> int:
                 if args.max_chunks and ran >= args.max_chunks:
                     log(args.out, f"stop after {ran} chunks (--max-chunks)")
                     return 0
-                run_logged_chunk(job, grid, chunk)
-                ran += 1
+                if run_logged_chunk(job, grid, chunk) is not None:
+                    ran += 1
         log(args.out, f"{job.name}: every PhysX chunk written")
         if job.assemble_physx() is not None:
             log(args.out, f"{job.name}: results.json complete")
