@@ -286,6 +286,8 @@ def test_the_gpu_run_trains_from_a_bundle_of_its_own_flags():
 
     cfg = load_script("tools/gpu_run/make_bundle.py", "make_bundle").training_config()
     assert (cfg.backend, cfg.num_envs, cfg.start_bank) == ("mujoco-warp", 4096, 8)
+    # the recipe of the best learned records (docs/training.md, "Learning from scripted"), teacher in the env
+    assert (cfg.teacher, cfg.dagger_steps, cfg.imitation_until, cfg.bodies) == ("scripted", 2e6, 12e6, "paper")
 
 
 @pytest.mark.cuda
