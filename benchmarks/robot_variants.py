@@ -24,7 +24,8 @@ from pathlib import Path
 
 from frbench.errors import FrbenchError
 from frbench.evaluation.intervals import wilson_interval
-from frbench.evaluation.runner import Cell, run_cell
+from frbench.evaluation.grid import EvaluationRequest
+from frbench.evaluation.runner import run_cell
 from frbench.robots import morphology_presets
 from frbench.robots.morphology import MorphologyParams, validate
 from frbench.robots.morphology_urdf import cached_spec
@@ -61,15 +62,11 @@ def variant_spec(robot: str, changes: dict[str, float], index: int):
 
 def successes(spec, policy: str, args) -> tuple[int, int]:
     """(successes, episodes) of ``policy`` on ``spec`` over the cells of ``args``."""
-    won = total = 0
-    for backend in args.backends.split(","):
-        for terrain in args.terrains.split(","):
-            for level in map(int, args.levels.split(",")):
-                for seed in map(int, args.seeds.split(",")):
-                    records = run_cell(Cell(spec, backend, terrain, level, seed, args.episodes), policy)
-                    won += sum(r["success"] for r in records)
-                    total += len(records)
-    return won, total
+    request = EvaluationRequest(policy=policy, robots=[spec], backends=args.backends.split(","),
+                                terrains=args.terrains.split(","), levels=list(map(int, args.levels.split(","))),
+                                seeds=list(map(int, args.seeds.split(","))), episodes=args.episodes)
+    records = [r for cell in request.cells() for r in run_cell(cell, policy)]
+    return sum(r["success"] for r in records), len(records)
 
 
 def main(argv: list[str] | None = None) -> int:
