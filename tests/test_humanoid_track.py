@@ -77,10 +77,10 @@ def record_of(results: dict, name: str | None = None, submitted: str = "2026-11-
 
 @pytest.fixture(scope="module")
 def records() -> dict[str, dict]:
-    """keyframe-humanoid (G1 only, 0.5, submitted an hour after zero), zero (G1 and the set, 0.5) and mpc
+    """mpc-distilled-g1 (G1 only, 0.5, submitted an hour after zero), zero (G1 and the set, 0.5) and mpc
     (simulator state, 0.75)."""
     return {
-        "keyframe": record_of(humanoid_results("keyframe-humanoid", with_set=False), submitted="2026-11-22T03:00:00Z"),
+        "g1_only": record_of(humanoid_results("mpc-distilled-g1", with_set=False), submitted="2026-11-22T03:00:00Z"),
         "zero": record_of(humanoid_results("zero", with_set=True)),
         "mpc": record_of(humanoid_results("mpc", with_set=True, better=True, inputs="simulator-state")),
     }
@@ -113,7 +113,7 @@ def test_the_humanoid_grid_of_protocol_13():
 
 
 def test_a_g1_policy_resolves_the_grid_with_the_humanoid_set_not_scored():
-    request = EvaluationRequest(policy="keyframe-humanoid", grid=["humanoid"], protocol_version="1.3")
+    request = EvaluationRequest(policy="mpc-distilled-g1", grid=["humanoid"], protocol_version="1.3")
     validate(request)
     assert len(request.cells()) == 144 and request.robots == ["g1"] and request.episodes == 3
     assert request.not_scored == {"icub": NOT_DRIVEN, "talos": NOT_DRIVEN}
@@ -131,9 +131,9 @@ def test_protocol_12_has_no_humanoid_grid():
 
 
 def test_a_complete_g1_record_is_on_the_humanoid_track_and_a_cell_short_is_partial(records):
-    keyframe = records["keyframe"]
-    assert keyframe["track"] == "humanoid" and records["zero"]["track"] == "humanoid"
-    cells, skipped = keyframe["results"]["cells"], ("icub", "talos")
+    g1_only = records["g1_only"]
+    assert g1_only["track"] == "humanoid" and records["zero"]["track"] == "humanoid"
+    cells, skipped = g1_only["results"]["cells"], ("icub", "talos")
     assert track_of(cells, "1.3", skipped) == "humanoid"
     assert humanoid_track_shortfall(cells[1:], "1.3", skipped) == "1 of the humanoid G1 grid's 144 cells are missing"
     assert track_of(cells[1:], "1.3", skipped) == "partial"
@@ -153,9 +153,9 @@ def test_scores_are_the_g1_cells_and_the_humanoid_set_is_scored_apart(records):
     assert records["mpc"]["scores"]["overall"] == pytest.approx(0.75)
     humanoids = generalisation(records["zero"]["results"]["cells"], "humanoid")["humanoids"]
     assert humanoids[0] == pytest.approx(1 / 9) and humanoids[1] < 1 / 9 < humanoids[2]
-    keyframe = records["keyframe"]
-    assert "unseen_humanoids" not in keyframe["scores"]
-    assert generalisation(keyframe["results"]["cells"], "humanoid") == {"humanoids": None}
+    g1_only = records["g1_only"]
+    assert "unseen_humanoids" not in g1_only["scores"]
+    assert generalisation(g1_only["results"]["cells"], "humanoid") == {"humanoids": None}
 
 
 # --------------------------------------------------------------------------- the board
@@ -167,9 +167,9 @@ def test_the_humanoid_section_ranks_its_records_with_the_simulator_state_policy_
                          policy="mpc", success=_success(True), unseen=False)  # seeds 2 and 3 missing: partial
     partial = record_of(protocol_13(short, "simulator-state"), "mpc-short")
     data = render.board([*records.values(), partial])
-    assert [r["name"] for r in data["humanoid"]] == ["mpc", "zero", "keyframe-humanoid"]
+    assert [r["name"] for r in data["humanoid"]] == ["mpc", "zero", "mpc-distilled-g1"]
     assert [r["rank"] for r in data["humanoid"]] == [1, 2, 3] and data["humanoid"][0]["inputs"] == "simulator-state"
-    # zero and keyframe-humanoid: 0.5 each, the same gaps (0): the earlier submission first, the two tied
+    # zero and mpc-distilled-g1: 0.5 each, the same gaps (0): the earlier submission first, the two tied
     assert data["humanoid"][2]["tied_above"] and not data["humanoid"][1]["tied_above"]
     assert [r["name"] for r in data["partial"]] == ["mpc-short"] and data["main"] == [] and data["archived"] == []
     assert data["humanoid"][2]["humanoids_not_scored"] == f"icub, talos: {NOT_DRIVEN}"
@@ -184,7 +184,7 @@ def test_the_humanoid_section_ranks_its_records_with_the_simulator_state_policy_
     table = render.render_table(list(records.values()), track="humanoid")
     assert table.startswith("Humanoid track, protocol 1.3") and "Main board" not in table
     assert "mpc (simulator state)" in table
-    assert f"keyframe-humanoid: humanoid set n/a: icub, talos: {NOT_DRIVEN}" in table
+    assert f"mpc-distilled-g1: humanoid set n/a: icub, talos: {NOT_DRIVEN}" in table
     alone = json.loads(render.render_json(list(records.values()), track="humanoid"))
     assert sorted(alone) == ["filters", "humanoid", "protocol_version"] and len(alone["humanoid"]) == 3
     assert "humanoid" in json.loads(render.render_json(list(records.values())))
@@ -215,7 +215,7 @@ def test_the_job_runs_chunk_by_chunk_resumes_and_assembles_checked_results(tmp_p
     tiny_set = dataclasses.replace(tiny, robots=("icub",))
     monkeypatch.setattr(grids, "grid_parts", lambda name, version=None: (tiny, tiny_set))
     out = tmp_path / "out"
-    args = ["--protocol", "1.3", "--out", str(out), "--only", "zero,keyframe-humanoid"]
+    args = ["--protocol", "1.3", "--out", str(out), "--only", "zero,mpc-distilled-g1"]
     assert humanoid_records.main([*args, "--max-chunks", "1"]) == 0
     assert sorted(p.name for p in out.glob("*/chunks/*.json")) == ["humanoid-g1-mujoco-flat.json"]
     first = (out / "zero/chunks/humanoid-g1-mujoco-flat.json").stat().st_mtime_ns
@@ -224,13 +224,13 @@ def test_the_job_runs_chunk_by_chunk_resumes_and_assembles_checked_results(tmp_p
     assert humanoid_records.main(args) == 0
     assert (out / "zero/chunks/humanoid-g1-mujoco-flat.json").stat().st_mtime_ns == first  # not run again
     assert sorted(str(p.relative_to(out)) for p in out.glob("*/chunks/*.json")) == [
-        "keyframe-humanoid/chunks/humanoid-g1-mujoco-flat.json", "zero/chunks/humanoid-g1-mujoco-flat.json",
+        "mpc-distilled-g1/chunks/humanoid-g1-mujoco-flat.json", "zero/chunks/humanoid-g1-mujoco-flat.json",
         "zero/chunks/humanoid-icub-mujoco-flat.json"]
     zero = json.loads((out / "zero/results.json").read_text())
-    keyframe = json.loads((out / "keyframe-humanoid/results.json").read_text())
+    g1_only = json.loads((out / "mpc-distilled-g1/results.json").read_text())
     assert zero["protocol_version"] == "1.3" and zero["config"]["grid"] == ["humanoid"]
     assert [c["robot"] for c in zero["cells"]] == ["g1", "icub"] and zero["config"]["not_scored"] == {}
-    assert [c["robot"] for c in keyframe["cells"]] == ["g1"] and set(keyframe["config"]["not_scored"]) == {"icub"}
+    assert [c["robot"] for c in g1_only["cells"]] == ["g1"] and set(g1_only["config"]["not_scored"]) == {"icub"}
     assert json.loads((out / "zero/meta.json").read_text())["protocol_version"] == "1.3"
     monkeypatch.setattr(grids, "grid_parts", grid_parts)  # the protocol's own grids: 1.2 has none, nothing is made
     with pytest.raises(FrbenchError, match="not under protocol 1.2"):

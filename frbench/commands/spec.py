@@ -114,6 +114,33 @@ def joint_frame_text(entry: dict, joint_names) -> list[str]:
     return lines
 
 
+def g1_frame_entry(spec) -> dict | None:
+    """A humanoid's G1 joint frame as JSON (`frbench.robots.humanoid_frame.HumanoidFrame.to_dict`), ``{"reason":
+    ...}`` saying why it has none, or None for a quadruped."""
+    from frbench.robots.humanoid_frame import HumanoidFrameError, humanoid_frame
+
+    if spec.kind != "humanoid":
+        return None
+    try:
+        return humanoid_frame(spec).to_dict(spec)
+    except HumanoidFrameError as exc:
+        return {"reason": str(exc)}
+
+
+def g1_frame_text(entry: dict | None) -> list[str]:
+    """The lines of ``frbench spec`` that show a humanoid's G1 joint frame (none for a quadruped)."""
+    if entry is None:
+        return []
+    if "reason" in entry:
+        return ["", f"G1 joint frame: none ({entry['reason']})"]
+    lines = ["", "G1 joint frame (scripted-humanoid and keyframe-humanoid drive the robot through it: g1 = sign * q "
+             "+ offset; a G1 joint it lacks is not driven):"]
+    for name, joint in entry["joints"].items():
+        lines.append(f"  {name:<26} " + ("-" if joint is None else
+                                         f"= {joint['sign']:+.0f} * {joint['joint']:<20} {joint['offset']:+7.3f} rad"))
+    return lines
+
+
 def run(args) -> int:
     """Print the contract."""
     from frbench.errors import FrbenchError
@@ -125,9 +152,11 @@ def run(args) -> int:
     spec = get_robot(args.robot)
     layout = read_layout(args.spec) if args.spec else policy_layout(args.policy, spec) if args.policy else None
     contract = contract_for(spec, layout)
-    frame = joint_frame_entry(spec)
+    frame, g1_frame = joint_frame_entry(spec), g1_frame_entry(spec)
     if args.json:
-        print(json.dumps({**contract.to_dict(), "joint_frame": frame}, indent=1))
+        print(json.dumps({**contract.to_dict(), "joint_frame": frame,
+                          **({"g1_joint_frame": g1_frame} if g1_frame is not None else {})}, indent=1))
     else:
-        print("\n".join([contract_text(contract), *joint_frame_text(frame, contract.joint_names)]))
+        print("\n".join([contract_text(contract), *joint_frame_text(frame, contract.joint_names),
+                         *g1_frame_text(g1_frame)]))
     return 0

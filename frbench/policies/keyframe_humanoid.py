@@ -361,9 +361,10 @@ class KeyframeHumanoidPolicy(HumanoidScriptedPolicy):
         belly, sit = self.fb_paths
         return {n: np.where(self.via_situp, sit[n], belly[n]) for n in belly}
 
-    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        """Joint targets (N, 29) [rad]: the key-frame targets plus the pitch feedback while rising."""
-        targets = super().act(obs)
+    def g1_act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        """Joint targets (N, 29) [rad] in G1 joint angles: the key-frame targets plus the pitch feedback while
+        rising (the CoM estimate reads the robot's own joint angles and model)."""
+        targets = super().g1_act(obs)
         fb = self._feedback()
         g = np.asarray(obs["projected_gravity"], dtype=float)
         rate = np.asarray(obs.get("base_angvel", np.zeros_like(g)), dtype=float)[:, 1]

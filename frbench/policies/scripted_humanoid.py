@@ -92,6 +92,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from frbench.robots.humanoid_frame import G1_JOINTS, HumanoidFrameError, humanoid_frame, reference_spec
+from frbench.robots.humanoid_frame import WAIST_ROLES as WAIST_JOINTS
 from frbench.robots.spec import RobotSpec
 
 LIE, ROLL, PUSH_A, PUSH_B, LIFT, PIKE, SQUAT, CROUCH, RISE, HOLD, TUCK, PROP, ROCK = range(13)
@@ -130,17 +132,8 @@ FALLEN_GZ = -0.5  # g_z above this while rising or holding: fallen over again
 #: Margin [rad] kept from the joint limits.
 LIMIT_MARGIN = 0.05
 
-LEG_JOINTS = ("hip_pitch", "hip_roll", "hip_yaw", "knee", "ankle_pitch", "ankle_roll")
-ARM_JOINTS = ("shoulder_pitch", "shoulder_roll", "shoulder_yaw", "elbow", "wrist_roll", "wrist_pitch", "wrist_yaw")
-WAIST_JOINTS = ("waist_yaw", "waist_roll", "waist_pitch")
 #: Joints whose sign is mirrored between the left and the right side (roll and yaw axes).
 MIRRORED = ("hip_roll", "hip_yaw", "ankle_roll", "shoulder_roll", "shoulder_yaw", "wrist_roll", "wrist_yaw")
-SIDES = ("left", "right")
-G1_JOINTS = (
-    tuple(f"{s}_{j}_joint" for s in SIDES for j in LEG_JOINTS)
-    + tuple(f"{j}_joint" for j in WAIST_JOINTS)
-    + tuple(f"{s}_{j}_joint" for s in SIDES for j in ARM_JOINTS)
-)
 
 #: Key poses [rad]: joint name without side -> angle of the left joint (the right one mirrors roll and
 #: yaw); joints not named keep their default angle.
@@ -216,8 +209,14 @@ class HumanoidScriptedPolicy:
     situp_tries = 0
 
     def supports(self, spec: RobotSpec) -> bool:
-        """Humanoids with the Unitree G1's 29 joints (matched by name)."""
-        return spec.kind == "humanoid" and set(spec.joint_names) == set(G1_JOINTS)
+        """Humanoids whose legs map onto the G1's (`frbench.robots.humanoid_frame`: the G1 itself, iCub, Talos)."""
+        if spec.kind != "humanoid":
+            return False
+        try:
+            humanoid_frame(spec)
+        except HumanoidFrameError:
+            return False
+        return True
 
     # ------------------------------------------------------------------ poses
     def _pose(self, left: dict, right: dict | None = None) -> np.ndarray:
@@ -235,10 +234,16 @@ class HumanoidScriptedPolicy:
         return np.clip(q, self.lo, self.hi)
 
     def _build_poses(self, spec: RobotSpec) -> None:
-        self.index = {name: i for i, name in enumerate(spec.joint_names)}
-        self.default = np.asarray(spec.default_pose, dtype=float)
-        self.lo = np.asarray(spec.joint_lower, dtype=float) + LIMIT_MARGIN
-        self.hi = np.asarray(spec.joint_upper, dtype=float) - LIMIT_MARGIN
+        """The key poses in G1 joint angles (`G1_JOINTS` order) for ``spec`` seen through its G1 joint frame:
+        its default pose and limits in G1 angles (the G1's own for a joint it lacks)."""
+        self.frame = humanoid_frame(spec)
+        reference = reference_spec()
+        self.robot_default = np.asarray(spec.default_pose, dtype=float)
+        self.index = {name: i for i, name in enumerate(G1_JOINTS)}
+        self.default = self.frame.to_g1(self.robot_default, np.asarray(reference.default_pose, dtype=float))
+        lower, upper = self.frame.g1_limits(spec, reference)
+        self.lo = lower + LIMIT_MARGIN
+        self.hi = upper - LIMIT_MARGIN
         self.poses = {
             LIE: self._pose(LIE_POSE),
             PUSH_A: self._pose(PUSH_A_POSE),
@@ -255,7 +260,7 @@ class HumanoidScriptedPolicy:
         }
 
     def key_poses(self) -> dict[str, np.ndarray]:
-        """Every fixed key pose by phase name (after ``reset``)."""
+        """Every fixed key pose by phase name (after ``reset``), in G1 joint angles (29,) [rad]."""
         return {PHASE_NAMES[phase]: q.copy() for phase, q in self.poses.items()}
 
     def roll_pose(self, direction: int, stage: int = 0, down_side: dict | None = None, up_side: dict | None = None,
@@ -293,10 +298,18 @@ class HumanoidScriptedPolicy:
         self.target = None
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        """Joint targets (N, 29) [rad]."""
+        """Joint targets (N, J) [rad] of the robot (`g1_act` through the robot's G1 joint frame)."""
+        return self.frame.to_joints(self.g1_act(obs), self.robot_default)
+
+    def _measured(self, joint_pos: np.ndarray) -> np.ndarray:
+        """The robot's measured joint angles (N, J) [rad] in G1 angles (N, 29), clipped to the limits."""
+        return self._clip(self.frame.to_g1(np.asarray(joint_pos, dtype=float), self.default))
+
+    def g1_act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        """Joint targets (N, 29) [rad] in G1 joint angles (``target``, a copy)."""
         g = np.asarray(obs["projected_gravity"], dtype=float)
         if self.target is None:  # first step: interpolate from where the joints are
-            self.target = self._clip(np.asarray(obs["joint_pos"], dtype=float).copy())
+            self.target = self._measured(obs["joint_pos"])
             self.start = self.target.copy()
         for i in range(self.num_envs):
             self._transition(i, g[i])
@@ -319,12 +332,12 @@ class HumanoidScriptedPolicy:
     def enter_gate(self, ids: np.ndarray, targets: np.ndarray, joint_pos: np.ndarray,
                    paths: np.ndarray | None = None) -> None:
         """Put environments ``ids`` at the start of the first gated phase (``CROUCH``), ramping from ``targets``
-        (len(ids), J) [rad] (the targets this controller had when its gate opened in a recorded run) — for
-        episodes that start where the rise begins. ``joint_pos`` (N, J) [rad]: every environment's measured
-        angles, the other environments' starting targets if no `act` has run yet. ``paths`` (len(ids),): their
-        `gate_paths` when recorded (ignored here)."""
+        (len(ids), 29) [rad] (this controller's ``target``, in G1 joint angles, when its gate opened in a recorded
+        run) — for episodes that start where the rise begins. ``joint_pos`` (N, J) [rad]: every environment's
+        measured angles (the robot's), the other environments' starting targets if no `act` has run yet.
+        ``paths`` (len(ids),): their `gate_paths` when recorded (ignored here)."""
         if self.target is None:  # as the first act() would: every environment starts from its measured angles
-            self.target = self._clip(np.asarray(joint_pos, dtype=float).copy())
+            self.target = self._measured(joint_pos)
             self.start = self.target.copy()
         for i, target in zip(np.asarray(ids, dtype=int), np.asarray(targets, dtype=float)):
             self.target[i] = self._clip(target)
