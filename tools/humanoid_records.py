@@ -9,7 +9,7 @@ machine is shared). Every finished chunk is written atomically to::
     OUT/<policy>/chunks/humanoid-<robot>-<simulator>-<family>.json    (its episodes)
 
 and a killed job resumes where it stopped: a chunk whose file exists is not run again. The robots of the
-humanoid set a policy cannot drive (``keyframe-humanoid`` and ``scripted-humanoid`` drive the G1 only) have no
+humanoid set a policy cannot drive (a learned G1 policy drives the G1's 29 joints only) have no
 chunks: their results name them in ``config.not_scored`` ("n/a" on the board, never 0). When a policy's chunks are
 complete, ``OUT/<policy>/results.json`` is assembled (``frbench evaluate``'s document, checked like a
 submission); ``--submit`` submits the finished ones. ``mpc`` costs about 25 CPU-s per G1 episode, so it runs

@@ -1,5 +1,9 @@
 """``scripted-humanoid``: a model-based key-frame getting-up controller for the Unitree G1 (no training).
 
+It drives other humanoids through their G1 joint frame (`frbench.robots.humanoid_frame`): the state machine and
+its key poses stay in G1 joint angles (``target``, `g1_act`), measured angles come in and targets go out through
+the frame (`act`); the G1's own frame is the identity.
+
 A per-environment state machine driven by proprioception only: the projected
 gravity g (body frame; (0, 0, -1) upright, (+1, 0, 0) face down, (-1, 0, 0)
 face up, g_y > 0 lying on the left side), the measured joint angles (only to
