@@ -1,6 +1,7 @@
 """The humanoid track's records of the built-in humanoid policies (``--grid humanoid``): one resumable job.
 
-For each policy (default: ``zero``, ``keyframe-humanoid``, ``scripted-humanoid``, ``mpc``, in that order) it runs
+For each policy (default: ``zero``, ``keyframe-humanoid``, ``scripted-humanoid``, ``mpc-distilled-g1`` (a learned
+G1 policy), ``mpc``, in that order) it runs
 ``frbench evaluate --grid humanoid`` of protocol ``--protocol`` (the current one by default; the humanoid grid
 exists from 1.3 on, docs/protocol.md, "The humanoid track") one *chunk* (policy x robot x simulator x family: 12
 G1 cells or 8 humanoid-set cells, 3 episodes each) at a time, in this process, one cell after the other (the
@@ -49,12 +50,14 @@ import rescore  # noqa: E402  (tools/rescore.py: the job machinery)
 
 GRID = "humanoid"
 #: The built-in policies run by default, in this order (the cheapest first; ``mpc`` plans at every step).
-POLICIES = ("zero", "keyframe-humanoid", "scripted-humanoid", "mpc")
+POLICIES = ("zero", "keyframe-humanoid", "scripted-humanoid", "mpc-distilled-g1", "mpc")
 #: The board description of each default policy's record (`tools.rescore.rescored_description` adds the origin).
 DESCRIPTIONS = {
     "zero": "Holds the default pose: the floor of the humanoid track.",
     "keyframe-humanoid": "The G1 getting-up state machine with tuned key poses (frbench.policies.keyframe_humanoid).",
     "scripted-humanoid": "The G1 getting-up state machine (frbench.policies.scripted_humanoid).",
+    "mpc-distilled-g1": "A learned G1 policy: an MLP distilled from mpc by DAgger (frbench distill, 144 episodes); "
+                        "proprioception only, the G1's 29 joints.",
     "mpc": "Sampling MPC over the simulator's state (frbench.policies.mpc): not a blind policy.",
 }
 
