@@ -1,9 +1,11 @@
 """A learned record re-scored in the canonical joint frame supersedes the record of the same policy file that ran
-in the robot's frame: the older one leaves the ranking for the archived section, and both keep their ids."""
+in the robot's frame, and a record that holds every episode of another record of the same policy, and more,
+supersedes that one: the older one leaves the ranking for the archived section, and both keep their ids."""
 
 from __future__ import annotations
 
 from frbench.leaderboard.render import section_of, superseded
+from frbench.leaderboard.sections import CANONICAL_RESCORE, EXTENDED, superseded_why
 from frbench.tasks.protocol import PROTOCOL_VERSION
 
 
@@ -31,3 +33,38 @@ def test_an_earlier_versions_robot_frame_record_is_superseded_within_its_version
     assert superseded([old, new, current]) == {"a" * 64: "b" * 64}
     assert [section_of(r, superseded([old, new, current])) for r in (old, new, current)] == [
         "archived", "archived", "main"]
+
+
+def _episodes(robots, success: bool = False) -> list[dict]:
+    return [{"robot": r, "backend": "mujoco", "terrain": "flat", "level": 1, "seed": 0, "episode": k,
+             "success": success and k == 0, "energy": 10.0 + k} for r in robots for k in range(3)]
+
+
+def _humanoid(id_: str, name: str, sha: str | None, episodes: list[dict]) -> dict:
+    policy = {"name": name, "checkpoint": "p.json" if sha else None, "sha256": sha}
+    return {"id": id_, "track": "humanoid", "results": {"protocol_version": PROTOCOL_VERSION, "policy": policy,
+                                                        "episodes": episodes}}
+
+
+def test_a_record_that_holds_every_episode_of_another_of_the_same_policy_and_more_supersedes_it():
+    g1_only = _humanoid("a" * 64, "keyframe-humanoid", "1" * 64, _episodes(["g1"]))
+    with_set = _humanoid("b" * 64, "keyframe-humanoid", "1" * 64, _episodes(["g1", "icub", "talos"]))
+    code_only = _humanoid("c" * 64, "scripted-humanoid", None, _episodes(["g1"]))  # code in frbench: matched by name
+    code_set = _humanoid("d" * 64, "scripted-humanoid", None, _episodes(["g1", "icub"]))
+    assert superseded([g1_only, with_set, code_only, code_set]) == {"a" * 64: "b" * 64, "c" * 64: "d" * 64}
+    assert [section_of(r, superseded([g1_only, with_set])) for r in (g1_only, with_set)] == ["archived", "humanoid"]
+    assert superseded_why(g1_only, with_set) == EXTENDED
+
+
+def test_a_wider_record_whose_shared_episodes_differ_or_of_another_policy_supersedes_nothing():
+    g1_only = _humanoid("a" * 64, "keyframe-humanoid", "1" * 64, _episodes(["g1"]))
+    changed = _humanoid("b" * 64, "keyframe-humanoid", "1" * 64, _episodes(["g1"], success=True) + _episodes(["icub"]))
+    other_file = _humanoid("c" * 64, "keyframe-humanoid", "2" * 64, _episodes(["g1", "icub"]))
+    other_name = _humanoid("d" * 64, "zero", "1" * 64, _episodes(["g1", "icub"]))
+    same = _humanoid("e" * 64, "keyframe-humanoid", "1" * 64, _episodes(["g1"]))  # equal, not more: neither goes
+    assert superseded([g1_only, changed, other_file, other_name, same]) == {}
+
+
+def test_the_canonical_rescore_is_named_as_such():
+    old, new = _record("a" * 64, "1" * 64), _record("b" * 64, "1" * 64, "canonical")
+    assert superseded_why(old, new) == CANONICAL_RESCORE

@@ -277,7 +277,7 @@ PAGE_SCRIPT = r"""
     document.getElementById("details-title").textContent = "Provenance: " + rec.name;
     var dl = el("dl");
     dlRow(dl, "Record", rec.id);
-    dlRow(dl, "Track", rec.superseded_by ? "archived (superseded by record " + rec.superseded_by.slice(0, 12) + ": the same policy file re-scored in the canonical joint frame)"
+    dlRow(dl, "Track", rec.superseded_by ? "archived (superseded by record " + rec.superseded_by.slice(0, 12) + ": " + rec.superseded_why + ")"
                        : rec.section === "archived" ? "archived (protocol " + rec.protocol_version + ", not ranked against " + DATA.protocol + ")"
                        : rec.track === "main" ? "main board (standard grid)"
                        : rec.track === "humanoid" ? "humanoid track (the G1 grid and the humanoid set)" : "partial");

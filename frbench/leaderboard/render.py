@@ -37,7 +37,7 @@ from frbench.leaderboard.scores import (
     rank_key,
     scored_cells,
 )
-from frbench.leaderboard.sections import SECTIONS, SIMULATOR_STATE, inputs_of, section_of, superseded
+from frbench.leaderboard.sections import SECTIONS, SIMULATOR_STATE, inputs_of, section_of, superseded, superseded_why
 from frbench.leaderboard.summaries import interval_views, record_generalisation, record_intervals
 from frbench.tasks.protocol import (
     HUMANOID_TERRAINS,
@@ -153,7 +153,7 @@ def board(records: Sequence[Mapping], *, robot: str | None = None, backend: str 
         unfiltered = robot is None and backend is None and terrain is None
         sections[section_of(record, replaced)].append({
             **_identity(record),
-            **({"superseded_by": replaced[record["id"]]} if record["id"] in replaced else {}),
+            **_superseded_fields(record, replaced, records),
             "inputs": inputs_of(record),
             "protocol_version": record["results"]["protocol_version"],
             "scores": scores,
@@ -246,7 +246,8 @@ SECTION_TITLES = {
     "partial": "Partial records, protocol {version} (not ranked against the main board)",
     "archived": "Archived: records of earlier protocol versions, ranked within their own version only "
                 "(never against protocol {version}), and records superseded by a re-score of the same policy file "
-                "in the canonical joint frame",
+                "in the canonical joint frame or by a record of the same policy that holds every one of their "
+                "episodes and more",
 }
 
 
@@ -286,6 +287,14 @@ def render_table(records: Sequence[Mapping], track: str | None = None, **filters
 # --------------------------------------------------------------------------- HTML
 
 
+def _superseded_fields(record: Mapping, replaced: Mapping[str, str], records: Sequence[Mapping]) -> dict:
+    """``superseded_by`` (the record id) and ``superseded_why`` (`superseded_why`) of a superseded record, else {}."""
+    if record["id"] not in replaced:
+        return {}
+    by = next(r for r in records if r["id"] == replaced[record["id"]])
+    return {"superseded_by": by["id"], "superseded_why": superseded_why(record, by)}
+
+
 def page_data(records: Sequence[Mapping]) -> dict:
     """The JSON embedded in ``index.html``: per record, its (robot, backend, terrain, level) aggregates and provenance."""
     entries = []
@@ -295,7 +304,7 @@ def page_data(records: Sequence[Mapping]) -> dict:
         entries.append({
             **_identity(record),
             "section": section_of(record, replaced),
-            **({"superseded_by": replaced[record["id"]]} if record["id"] in replaced else {}),
+            **_superseded_fields(record, replaced, records),
             **({"inputs": SIMULATOR_STATE} if inputs_of(record) == SIMULATOR_STATE else {}),
             "protocol_version": record["results"]["protocol_version"],
             "episodes": record["scores"]["episodes"],

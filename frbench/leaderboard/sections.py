@@ -1,6 +1,7 @@
 """Which section of the board a record belongs to: the ranked main board, the ranked humanoid track, the partial
 records, or the archive (records of other protocol versions, and records superseded by a canonical-joint-frame
-re-score of the same policy file), and what a record's policy read."""
+re-score of the same policy file or by a record of the same policy that holds every one of their episodes and more),
+and what a record's policy read."""
 
 from __future__ import annotations
 
@@ -9,12 +10,14 @@ from typing import Mapping, Sequence
 from frbench.tasks.protocol import PROTOCOL_VERSION
 
 
-def superseded(records: Sequence[Mapping]) -> dict[str, str]:
-    """Record id → the id of the record that supersedes it: a record of a learned policy run in the robot's own
-    joint frame, where a record of the same protocol version and the same policy file (its sha256) ran it in the
-    canonical frame (`frbench.robots.joint_frame`; docs/protocol.md, "The joint frame"). Each id keeps meaning
-    its own results; the superseded one moves to the archived section (an earlier version's, from its ranking
-    there)."""
+#: Why a record is superseded (`superseded_why`), by rule.
+CANONICAL_RESCORE = "the same policy file re-scored in the canonical joint frame"
+EXTENDED = "the same policy's record that holds every episode of it unchanged, and more"
+
+
+def _canonical_rescores(records: Sequence[Mapping]) -> dict[str, str]:
+    """Record id → id: a learned policy's robot-frame record → the canonical-frame record of the same protocol
+    version and policy file (sha256)."""
     canonical = {}
     for record in records:
         policy = record["results"]["policy"]
@@ -27,6 +30,50 @@ def superseded(records: Sequence[Mapping]) -> dict[str, str]:
         if policy.get("joint_frame", "robot") == "robot" and key in canonical:
             out[record["id"]] = canonical[key]
     return out
+
+
+def _episode_key(episode: Mapping) -> tuple:
+    return (episode["robot"], episode["backend"], episode["terrain"], episode["level"], episode["seed"],
+            episode["episode"])
+
+
+def _extensions(records: Sequence[Mapping]) -> dict[str, str]:
+    """Record id → the id of the record with the most episodes that *extends* it: the same protocol version, policy
+    name, policy file (sha256, or none for both: code in frbench) and joint frame, every episode of it present and
+    equal there, and more episodes (e.g. the humanoid set's robots, which the first run did not drive)."""
+    def policy_key(record):
+        policy = record["results"]["policy"]
+        return (record["results"]["protocol_version"], policy.get("name"), policy.get("sha256"),
+                policy.get("joint_frame", "robot"))
+
+    groups: dict[tuple, list[Mapping]] = {}
+    for record in records:
+        groups.setdefault(policy_key(record), []).append(record)
+    out = {}
+    for group in (g for g in groups.values() if len(g) > 1):
+        episodes = {r["id"]: {_episode_key(e): e for e in r["results"].get("episodes", ())} for r in group}
+        for record in group:
+            mine = episodes[record["id"]]
+            wider = [other for other in group if len(episodes[other["id"]]) > len(mine) > 0
+                     and all(episodes[other["id"]].get(key) == e for key, e in mine.items())]
+            if wider:
+                out[record["id"]] = max(wider, key=lambda r: len(episodes[r["id"]]))["id"]
+    return out
+
+
+def superseded(records: Sequence[Mapping]) -> dict[str, str]:
+    """Record id → the id of the record that supersedes it (`superseded_why` says why): a record of a learned
+    policy run in the robot's own joint frame, where a record of the same protocol version and the same policy
+    file (its sha256) ran it in the canonical frame (`frbench.robots.joint_frame`; docs/protocol.md, "The joint
+    frame"); or a record another record of the same policy extends (`_extensions`). Each id keeps meaning its own
+    results; the superseded one moves to the archived section (an earlier version's, from its ranking there)."""
+    return {**_extensions(records), **_canonical_rescores(records)}
+
+
+def superseded_why(record: Mapping, by: Mapping) -> str:
+    """Why ``by`` supersedes ``record`` (`superseded`): `CANONICAL_RESCORE` or `EXTENDED`."""
+    frames = (record["results"]["policy"].get("joint_frame", "robot"), by["results"]["policy"].get("joint_frame", "robot"))
+    return CANONICAL_RESCORE if frames == ("robot", "canonical") else EXTENDED
 
 
 def section_of(record: Mapping, replaced: Mapping[str, str] | None = None) -> str:
