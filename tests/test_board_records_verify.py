@@ -24,10 +24,12 @@ BOARD = Path(__file__).resolve().parents[1] / "leaderboard"
 #: episodes whose start 1.4 redraws run again, tools/rescore_starts.py) and 3 evaluated under 1.4 (the
 #: kickstart-scripted seeds); no 1.4 record ran a learned policy in the robot's own joint frame.
 EXPECTED_MAIN_RECORDS = 20
-EXPECTED_SUPERSEDED = 0
-#: The humanoid track's records: keyframe-humanoid, scripted-humanoid, zero (tools/humanoid_records.py under 1.3,
-#: re-scored under 1.4 by tools/rescore_starts.py).
-EXPECTED_HUMANOID_RECORDS = 3
+#: The G1-only 1.4 records of keyframe-humanoid and scripted-humanoid (re-scored from 1.3), superseded by the records
+#: of the same controllers with the humanoid set (the same G1 cells, driven through the G1 joint frame).
+EXPECTED_SUPERSEDED = 2
+#: The humanoid track's records: keyframe-humanoid and scripted-humanoid (G1 grid and humanoid set), zero (re-scored
+#: from 1.3 by tools/rescore_starts.py) and mpc-distilled-g1 (G1 only), all by tools/humanoid_records.py.
+EXPECTED_HUMANOID_RECORDS = 4
 SAMPLE = 4
 
 

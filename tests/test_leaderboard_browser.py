@@ -258,7 +258,7 @@ def test_the_humanoid_track_is_ranked_in_its_own_table(tmp_path, monkeypatch):
 
     for module in (sections, render):
         monkeypatch.setattr(module, "PROTOCOL_VERSION", "1.3")
-    records = [record_of(humanoid_results("keyframe-humanoid", with_set=False)),
+    records = [record_of(humanoid_results("mpc-distilled-g1", with_set=False)),
                record_of(humanoid_results("mpc", with_set=True, better=True, inputs="simulator-state"))]
     page = tmp_path / "index.html"
     page.write_text(render_html(records), encoding="utf-8")
@@ -269,7 +269,7 @@ def test_the_humanoid_track_is_ranked_in_its_own_table(tmp_path, monkeypatch):
     assert keys[:5] == ["rank", "name", "policy", "submitter", "overall"]
     assert [k for k in keys if k.startswith("family:")] == ["family:flat", "family:rough", "family:slopes", "family:stairs"]
     assert "unseen" not in keys and "humanoids" in keys and "backend:physx" in keys
-    assert [row[1] for row in rows] == ["mpc", "keyframe-humanoid"] and rows[0][2] == "mpc (simulator state)"
+    assert [row[1] for row in rows] == ["mpc", "mpc-distilled-g1"] and rows[0][2] == "mpc (simulator state)"
     assert rows[0][keys.index("overall")].startswith("0.750 (") and rows[1][keys.index("overall")].startswith("0.500 (")
     assert rows[0][keys.index("humanoids")].startswith("0.111 (")
     assert rows[1][keys.index("humanoids")] == f"n/a: icub, talos: {NOT_DRIVEN}"
@@ -302,9 +302,10 @@ def test_screenshot(board_dir, tmp_path):
         assert colors is not None and len(colors) > 50  # not a blank page
 
 
-def _main_table(dom: str) -> tuple[list[str], list[list[str]]]:
-    """(column keys, rows of cell texts) of the rendered main board's table in a dumped DOM."""
-    table = dom[dom.index('id="main-table"'):]
+def _main_table(dom: str, table_id: str = "main-table") -> tuple[list[str], list[list[str]]]:
+    """(column keys, rows of cell texts) of the rendered main board's table (or the table ``table_id``) in a
+    dumped DOM."""
+    table = dom[dom.index(f'id="{table_id}"'):]
     table = table[:table.index("</table>")]
     keys = re.findall(r'<th scope="col" data-key="([^"]+)"', table)
     body = table[table.index("<tbody"):]
@@ -335,3 +336,26 @@ def test_the_repository_page_shows_standard_and_unseen_success_of_every_main_rec
         assert re.fullmatch(r"0\.\d{3} \(0\.\d{3}–[01]\.\d{3}\)", row[keys.index("overall")])
         assert re.fullmatch(r"[−+]0\.\d{3} \([−+]0\.\d{3}\.\.[−+]0\.\d{3}\)", row[keys.index("gengap")])
         assert row[keys.index("humanoids")] == "n/a"  # no main-board policy drives humanoids
+
+
+def test_the_repository_page_shows_the_humanoid_track_with_each_records_humanoid_set(tmp_path):
+    from frbench.leaderboard.scores import generalisation
+    from frbench.leaderboard.sections import section_of, superseded
+
+    records = load_records(REPO_BOARD)
+    replaced = superseded(records)
+    track = [r for r in records if section_of(r, replaced) == "humanoid"]
+    if not track:
+        pytest.skip("no humanoid-track record of the current protocol")
+    done = chromium(tmp_path, "--dump-dom", (REPO_BOARD / "index.html").as_uri())
+    assert done.returncode == 0 and console_errors(done.stderr) == []
+    keys, rows = _main_table(done.stdout, "humanoid-table")
+    assert sorted(row[keys.index("name")] for row in rows) == sorted(r["submission"]["name"] for r in track)
+    by_name = {row[keys.index("name")]: row for row in rows}
+    for record in track:
+        shown = by_name[record["submission"]["name"]][keys.index("humanoids")]
+        humanoids = generalisation(record["results"]["cells"], "humanoid")["humanoids"]
+        if humanoids is None:
+            assert shown.startswith("n/a: "), shown  # with the reason
+        else:
+            assert shown.startswith(f"{humanoids[0]:.3f} ({humanoids[1]:.3f}"), shown

@@ -1,5 +1,5 @@
 """A learned record re-scored in the canonical joint frame supersedes the record of the same policy file that ran
-in the robot's frame, and a record that holds every episode of another record of the same policy, and more,
+in the robot's frame, and a record that holds every cell of another record of the same policy, and more,
 supersedes that one: the older one leaves the ranking for the archived section, and both keep their ids."""
 
 from __future__ import annotations
@@ -35,33 +35,34 @@ def test_an_earlier_versions_robot_frame_record_is_superseded_within_its_version
         "archived", "archived", "main"]
 
 
-def _episodes(robots, success: bool = False) -> list[dict]:
-    return [{"robot": r, "backend": "mujoco", "terrain": "flat", "level": 1, "seed": 0, "episode": k,
-             "success": success and k == 0, "energy": 10.0 + k} for r in robots for k in range(3)]
+def _cells(robots, success: bool = False) -> list[dict]:
+    """A record's cells: seeds 0-2 of each robot."""
+    return [{"robot": r, "backend": "mujoco", "terrain": "flat", "level": 1, "seed": k, "episodes": 3,
+             "successes": int(success and k == 0), "mean_energy": 10.0 + k} for r in robots for k in range(3)]
 
 
-def _humanoid(id_: str, name: str, sha: str | None, episodes: list[dict]) -> dict:
+def _humanoid(id_: str, name: str, sha: str | None, cells: list[dict]) -> dict:
     policy = {"name": name, "checkpoint": "p.json" if sha else None, "sha256": sha}
     return {"id": id_, "track": "humanoid", "results": {"protocol_version": PROTOCOL_VERSION, "policy": policy,
-                                                        "episodes": episodes}}
+                                                        "cells": cells}}
 
 
-def test_a_record_that_holds_every_episode_of_another_of_the_same_policy_and_more_supersedes_it():
-    g1_only = _humanoid("a" * 64, "keyframe-humanoid", "1" * 64, _episodes(["g1"]))
-    with_set = _humanoid("b" * 64, "keyframe-humanoid", "1" * 64, _episodes(["g1", "icub", "talos"]))
-    code_only = _humanoid("c" * 64, "scripted-humanoid", None, _episodes(["g1"]))  # code in frbench: matched by name
-    code_set = _humanoid("d" * 64, "scripted-humanoid", None, _episodes(["g1", "icub"]))
+def test_a_record_that_holds_every_cell_of_another_of_the_same_policy_and_more_supersedes_it():
+    g1_only = _humanoid("a" * 64, "keyframe-humanoid", "1" * 64, _cells(["g1"]))
+    with_set = _humanoid("b" * 64, "keyframe-humanoid", "1" * 64, _cells(["g1", "icub", "talos"]))
+    code_only = _humanoid("c" * 64, "scripted-humanoid", None, _cells(["g1"]))  # code in frbench: matched by name
+    code_set = _humanoid("d" * 64, "scripted-humanoid", None, _cells(["g1", "icub"]))
     assert superseded([g1_only, with_set, code_only, code_set]) == {"a" * 64: "b" * 64, "c" * 64: "d" * 64}
     assert [section_of(r, superseded([g1_only, with_set])) for r in (g1_only, with_set)] == ["archived", "humanoid"]
     assert superseded_why(g1_only, with_set) == EXTENDED
 
 
-def test_a_wider_record_whose_shared_episodes_differ_or_of_another_policy_supersedes_nothing():
-    g1_only = _humanoid("a" * 64, "keyframe-humanoid", "1" * 64, _episodes(["g1"]))
-    changed = _humanoid("b" * 64, "keyframe-humanoid", "1" * 64, _episodes(["g1"], success=True) + _episodes(["icub"]))
-    other_file = _humanoid("c" * 64, "keyframe-humanoid", "2" * 64, _episodes(["g1", "icub"]))
-    other_name = _humanoid("d" * 64, "zero", "1" * 64, _episodes(["g1", "icub"]))
-    same = _humanoid("e" * 64, "keyframe-humanoid", "1" * 64, _episodes(["g1"]))  # equal, not more: neither goes
+def test_a_wider_record_whose_shared_cells_differ_or_of_another_policy_supersedes_nothing():
+    g1_only = _humanoid("a" * 64, "keyframe-humanoid", "1" * 64, _cells(["g1"]))
+    changed = _humanoid("b" * 64, "keyframe-humanoid", "1" * 64, _cells(["g1"], success=True) + _cells(["icub"]))
+    other_file = _humanoid("c" * 64, "keyframe-humanoid", "2" * 64, _cells(["g1", "icub"]))
+    other_name = _humanoid("d" * 64, "zero", "1" * 64, _cells(["g1", "icub"]))
+    same = _humanoid("e" * 64, "keyframe-humanoid", "1" * 64, _cells(["g1"]))  # equal, not more: neither goes
     assert superseded([g1_only, changed, other_file, other_name, same]) == {}
 
 

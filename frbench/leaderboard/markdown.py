@@ -238,7 +238,7 @@ def render_markdown(records: Sequence[Mapping]) -> str:
         "version's standard grid are ranked among themselves (`~`: interval overlaps the one above), the rest (`-`) not.",
         "A record *superseded by* another either ran a learned policy in each robot's own joint convention (the",
         "record named re-scores the same policy file in the canonical joint frame; docs/protocol.md, \"The joint",
-        "frame\") or holds fewer episodes of the same policy than the record named, which holds every one of them",
+        "frame\") or holds fewer cells of the same policy than the record named, which holds every one of them",
         "unchanged, and more (e.g. the humanoid set of robots the first run did not drive).",
         "Each record id keeps meaning its own results.",
         "",

@@ -247,7 +247,7 @@ SECTION_TITLES = {
     "archived": "Archived: records of earlier protocol versions, ranked within their own version only "
                 "(never against protocol {version}), and records superseded by a re-score of the same policy file "
                 "in the canonical joint frame or by a record of the same policy that holds every one of their "
-                "episodes and more",
+                "cells and more",
 }
 
 

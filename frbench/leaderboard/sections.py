@@ -1,6 +1,6 @@
 """Which section of the board a record belongs to: the ranked main board, the ranked humanoid track, the partial
 records, or the archive (records of other protocol versions, and records superseded by a canonical-joint-frame
-re-score of the same policy file or by a record of the same policy that holds every one of their episodes and more),
+re-score of the same policy file or by a record of the same policy that holds every one of their cells and more),
 and what a record's policy read."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from frbench.tasks.protocol import PROTOCOL_VERSION
 
 #: Why a record is superseded (`superseded_why`), by rule.
 CANONICAL_RESCORE = "the same policy file re-scored in the canonical joint frame"
-EXTENDED = "the same policy's record that holds every episode of it unchanged, and more"
+EXTENDED = "the same policy's record that holds every cell of it unchanged, and more"
 
 
 def _canonical_rescores(records: Sequence[Mapping]) -> dict[str, str]:
@@ -32,15 +32,16 @@ def _canonical_rescores(records: Sequence[Mapping]) -> dict[str, str]:
     return out
 
 
-def _episode_key(episode: Mapping) -> tuple:
-    return (episode["robot"], episode["backend"], episode["terrain"], episode["level"], episode["seed"],
-            episode["episode"])
+def _cell_key(cell: Mapping) -> tuple:
+    return (cell["robot"], cell["backend"], cell["terrain"], cell["level"], cell["seed"])
 
 
 def _extensions(records: Sequence[Mapping]) -> dict[str, str]:
-    """Record id → the id of the record with the most episodes that *extends* it: the same protocol version, policy
-    name, policy file (sha256, or none for both: code in frbench) and joint frame, every episode of it present and
-    equal there, and more episodes (e.g. the humanoid set's robots, which the first run did not drive)."""
+    """Record id → the id of the record with the most cells that *extends* it: the same protocol version, policy
+    name, policy file (sha256, or none for both: code in frbench) and joint frame, every cell of it present and
+    equal there (episodes, successes, rates and every metric's mean, to the last bit: the cells of a record's
+    summary, `frbench.leaderboard.summaries`, which holds no episode list), and more cells (e.g. the humanoid set's
+    robots, which the first run did not drive)."""
     def policy_key(record):
         policy = record["results"]["policy"]
         return (record["results"]["protocol_version"], policy.get("name"), policy.get("sha256"),
@@ -51,13 +52,13 @@ def _extensions(records: Sequence[Mapping]) -> dict[str, str]:
         groups.setdefault(policy_key(record), []).append(record)
     out = {}
     for group in (g for g in groups.values() if len(g) > 1):
-        episodes = {r["id"]: {_episode_key(e): e for e in r["results"].get("episodes", ())} for r in group}
+        cells = {r["id"]: {_cell_key(c): c for c in r["results"].get("cells", ())} for r in group}
         for record in group:
-            mine = episodes[record["id"]]
-            wider = [other for other in group if len(episodes[other["id"]]) > len(mine) > 0
-                     and all(episodes[other["id"]].get(key) == e for key, e in mine.items())]
+            mine = cells[record["id"]]
+            wider = [other for other in group if len(cells[other["id"]]) > len(mine) > 0
+                     and all(cells[other["id"]].get(key) == c for key, c in mine.items())]
             if wider:
-                out[record["id"]] = max(wider, key=lambda r: len(episodes[r["id"]]))["id"]
+                out[record["id"]] = max(wider, key=lambda r: len(cells[r["id"]]))["id"]
     return out
 
 
