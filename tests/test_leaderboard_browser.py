@@ -314,21 +314,27 @@ def _main_table(dom: str, table_id: str = "main-table") -> tuple[list[str], list
     return keys, rows
 
 
-def test_the_repository_page_shows_standard_and_unseen_success_of_every_main_record(tmp_path):
-    from frbench.leaderboard.scores import generalisation
-
+def _repository_rows(tmp_path, section: str) -> tuple[list[dict], dict[str, list[str]], list[str]]:
+    """The repository board's records ranked in ``section`` (``main`` or ``humanoid``; the test is skipped where
+    there is none), and its table on the page (row cell texts by record name, column keys)."""
     from frbench.leaderboard.sections import section_of, superseded
 
     records = load_records(REPO_BOARD)
     replaced = superseded(records)
-    main = [r for r in records if section_of(r, replaced) == "main"]
-    if not main:
-        pytest.skip("no main-board record of the current protocol")
+    ranked = [r for r in records if section_of(r, replaced) == section]
+    if not ranked:
+        pytest.skip(f"no {section} record of the current protocol")
     done = chromium(tmp_path, "--dump-dom", (REPO_BOARD / "index.html").as_uri())
     assert done.returncode == 0 and console_errors(done.stderr) == []
-    keys, rows = _main_table(done.stdout)
-    assert len(rows) == len(main)
-    by_name = {row[keys.index("name")]: row for row in rows}
+    keys, rows = _main_table(done.stdout, f"{section}-table")
+    assert len(rows) == len(ranked)
+    return ranked, {row[keys.index("name")]: row for row in rows}, keys
+
+
+def test_the_repository_page_shows_standard_and_unseen_success_of_every_main_record(tmp_path):
+    from frbench.leaderboard.scores import generalisation
+
+    main, by_name, keys = _repository_rows(tmp_path, "main")
     for record in main:
         row = by_name[record["submission"]["name"]]
         unseen = generalisation(record["results"]["cells"], "main")["unseen"]
@@ -340,18 +346,8 @@ def test_the_repository_page_shows_standard_and_unseen_success_of_every_main_rec
 
 def test_the_repository_page_shows_the_humanoid_track_with_each_records_humanoid_set(tmp_path):
     from frbench.leaderboard.scores import generalisation
-    from frbench.leaderboard.sections import section_of, superseded
 
-    records = load_records(REPO_BOARD)
-    replaced = superseded(records)
-    track = [r for r in records if section_of(r, replaced) == "humanoid"]
-    if not track:
-        pytest.skip("no humanoid-track record of the current protocol")
-    done = chromium(tmp_path, "--dump-dom", (REPO_BOARD / "index.html").as_uri())
-    assert done.returncode == 0 and console_errors(done.stderr) == []
-    keys, rows = _main_table(done.stdout, "humanoid-table")
-    assert sorted(row[keys.index("name")] for row in rows) == sorted(r["submission"]["name"] for r in track)
-    by_name = {row[keys.index("name")]: row for row in rows}
+    track, by_name, keys = _repository_rows(tmp_path, "humanoid")
     for record in track:
         shown = by_name[record["submission"]["name"]][keys.index("humanoids")]
         humanoids = generalisation(record["results"]["cells"], "humanoid")["humanoids"]
